@@ -1,0 +1,1 @@
+"""The ``jaxsimrl`` command line: one module per group of subcommands, dispatched by :mod:`.main`."""

@@ -1,0 +1,51 @@
+"""Entry point of the ``jaxsimrl`` console script.
+
+Each subcommand module exposes ``register(subparsers)``, which adds its parsers and sets
+``func=run_function`` on them. Heavy imports (JAX, OpenFOAM tooling) happen inside the run functions
+so ``jaxsimrl --help`` and flag errors are instant.
+"""
+
+from __future__ import annotations
+
+import importlib
+import sys
+
+from jaxsimrl.cli.errors import OneLineArgumentParser, UsageError
+
+# Modules that contribute subcommands; a missing one is skipped so the halves stay independent.
+SUBCOMMAND_MODULES = ("jaxsimrl.cli.lorenz", "jaxsimrl.cli.foam")
+
+
+def build_parser() -> OneLineArgumentParser:
+    parser = OneLineArgumentParser(
+        prog="jaxsimrl",
+        description="Train deep-RL agents (pure-JAX PPO) to control scientific simulations.",
+    )
+    subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=OneLineArgumentParser)
+    subparsers.required = True
+    for name in SUBCOMMAND_MODULES:
+        try:
+            module = importlib.import_module(name)
+        except ModuleNotFoundError as err:
+            if err.name != name:
+                raise
+            continue
+        module.register(subparsers)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except UsageError as err:
+        sys.stderr.write(f"jaxsimrl {args.command}: error: {err}\n")
+        return 2
+    except KeyboardInterrupt:
+        sys.stderr.write(f"jaxsimrl {args.command}: interrupted\n")
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())
