@@ -1,0 +1,186 @@
+"""The layout of a training run directory and the files in it (everything but the checkpoints).
+
+    RUN_DIR/
+      config.json     resolved config: {"env", "seed", "ppo": PPOConfig dict, "jax_version", "devices", ...}
+      metrics.jsonl   one JSON object per PPO update (non-finite numbers written as null)
+      metrics.csv     the same rows as CSV (non-finite numbers left empty)
+      summary.json    totals of the run, rewritten after every chunk
+      checkpoints/    orbax checkpoints, one per chunk (see :mod:`jaxsimrl.runs.checkpoint`)
+
+Every write is atomic. The metrics files are rewritten whole after every chunk, *before* the chunk's
+checkpoint is saved: a crash in between leaves rows past the last checkpoint, which
+:meth:`MetricsLog.load` drops on resume, so the files never miss an update that the checkpoint has.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from jaxsimrl.runs.atomic import atomic_write_json, atomic_write_text
+
+CONFIG_FILE = "config.json"
+METRICS_JSONL = "metrics.jsonl"
+METRICS_CSV = "metrics.csv"
+SUMMARY_FILE = "summary.json"
+CHECKPOINT_DIR = "checkpoints"
+# final_mean_return averages the episodes that ended in this many last updates that had any.
+FINAL_RETURN_UPDATES = 5
+
+Row = dict[str, Any]
+
+
+@dataclass(frozen=True)
+class RunDir:
+    """Paths of one run directory."""
+
+    path: Path
+
+    @property
+    def config(self) -> Path:
+        return self.path / CONFIG_FILE
+
+    @property
+    def metrics_jsonl(self) -> Path:
+        return self.path / METRICS_JSONL
+
+    @property
+    def metrics_csv(self) -> Path:
+        return self.path / METRICS_CSV
+
+    @property
+    def summary(self) -> Path:
+        return self.path / SUMMARY_FILE
+
+    @property
+    def checkpoints(self) -> Path:
+        return self.path / CHECKPOINT_DIR
+
+    @classmethod
+    def create(cls, path: str | Path) -> RunDir:
+        """Make a fresh run directory; refuse an existing non-empty one (it may hold another run)."""
+        run = cls(Path(path))
+        if run.path.exists() and not run.path.is_dir():
+            raise ValueError(f"--out {run.path} exists and is not a directory")
+        if run.path.is_dir() and any(run.path.iterdir()):
+            raise ValueError(f"--out {run.path} is not empty (continue that run with --resume {run.path})")
+        run.path.mkdir(parents=True, exist_ok=True)
+        return run
+
+    @classmethod
+    def existing(cls, path: str | Path) -> RunDir:
+        """An existing run directory with a readable config.json."""
+        run = cls(Path(path))
+        if not run.path.is_dir():
+            raise ValueError(f"run directory {run.path} does not exist")
+        if not run.config.is_file():
+            raise ValueError(f"{run.path} is not a run directory (no {CONFIG_FILE})")
+        return run
+
+    def write_config(self, record: dict[str, Any]) -> None:
+        atomic_write_json(self.config, record)
+
+    def read_config(self) -> dict[str, Any]:
+        try:
+            record = json.loads(self.config.read_text())
+        except (OSError, json.JSONDecodeError) as err:
+            raise ValueError(f"cannot read {self.config}: {err}") from None
+        if not isinstance(record, dict) or not isinstance(record.get("ppo"), dict):
+            raise ValueError(f"{self.config} has no 'ppo' section: not a jaxsimrl run config")
+        return record
+
+    def write_summary(self, summary: dict[str, Any]) -> None:
+        atomic_write_json(self.summary, _json_safe(summary))
+
+
+class MetricsLog:
+    """The per-update metrics rows of a run, mirrored to metrics.jsonl and metrics.csv."""
+
+    def __init__(self, run: RunDir, rows: Sequence[Row] = ()) -> None:
+        self.run = run
+        self.rows: list[Row] = [dict(row) for row in rows]
+
+    @classmethod
+    def load(cls, run: RunDir, up_to_update: int) -> MetricsLog:
+        """Rows of updates 1..``up_to_update`` from metrics.jsonl (later rows and a torn line are dropped)."""
+        rows: list[Row] = []
+        if run.metrics_jsonl.exists():
+            for line in run.metrics_jsonl.read_text().splitlines():
+                try:
+                    row = json.loads(line)
+                except json.JSONDecodeError:
+                    continue
+                if isinstance(row, dict) and row.get("update", math.inf) <= up_to_update:
+                    rows.append({k: math.nan if v is None else v for k, v in row.items()})
+        return cls(run, rows)
+
+    def extend(self, rows: Iterable[Row]) -> None:
+        """Add rows and rewrite both files atomically."""
+        self.rows.extend(dict(row) for row in rows)
+        self.write()
+
+    def write(self) -> None:
+        safe_rows = [_json_safe(row) for row in self.rows]
+        atomic_write_text(self.run.metrics_jsonl, "".join(json.dumps(r) + "\n" for r in safe_rows))
+        atomic_write_text(self.run.metrics_csv, _to_csv(safe_rows))
+
+    @property
+    def wall_time_s(self) -> float:
+        """Training time of the run so far (carried over across resumes)."""
+        return float(self.rows[-1]["wall_time_s"]) if self.rows else 0.0
+
+    @property
+    def env_steps(self) -> int:
+        return int(self.rows[-1]["env_steps"]) if self.rows else 0
+
+
+def summarise(rows: Sequence[Row], extra: dict[str, Any] | None = None) -> dict[str, Any]:
+    """summary.json: totals plus ``final_mean_return``, the episode-weighted mean return over the last
+    ``FINAL_RETURN_UPDATES`` updates in which at least one episode ended (NaN if none did)."""
+    total_steps = int(rows[-1]["env_steps"]) if rows else 0
+    wall = float(rows[-1]["wall_time_s"]) if rows else 0.0
+    with_episodes = [r for r in rows if r.get("episodes", 0) > 0 and math.isfinite(r["mean_episode_return"])]
+    window = with_episodes[-FINAL_RETURN_UPDATES:]
+    episodes = sum(int(r["episodes"]) for r in window)
+    final = sum(r["mean_episode_return"] * r["episodes"] for r in window) / episodes if episodes else math.nan
+    summary = {
+        "total_steps": total_steps,
+        "updates": int(rows[-1]["update"]) if rows else 0,
+        "wall_time_s": wall,
+        "steps_per_s": total_steps / wall if wall > 0 else math.nan,
+        "final_mean_return": final,
+        "final_return_episodes": episodes,
+        "final_return_updates": [int(r["update"]) for r in window],
+        "best_mean_return": max((r["mean_episode_return"] for r in with_episodes), default=math.nan),
+    }
+    summary.update(extra or {})
+    return summary
+
+
+def _json_safe(value: Any) -> Any:
+    """Non-finite floats become null: metrics.jsonl and summary.json stay strict JSON."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: _json_safe(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_json_safe(v) for v in value]
+    return value
+
+
+def _to_csv(rows: Sequence[Row]) -> str:
+    if not rows:
+        return ""
+    columns = list(rows[0])
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=columns, lineterminator="\n", extrasaction="ignore")
+    writer.writeheader()
+    for row in rows:
+        writer.writerow({k: "" if row.get(k) is None else row.get(k) for k in columns})
+    return buffer.getvalue()
