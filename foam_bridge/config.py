@@ -1,0 +1,162 @@
+"""FoamEnvConfig: every constant of one simpleFoam solver-control environment.
+
+The environment (Pawar & Maulik, "Solver convergence acceleration"): a steady simpleFoam run of a 2D
+turbulent backward-facing step (k-omega SST). Every ``interval`` SIMPLE iterations the agent sets the
+under-relaxation factors (alpha_u, alpha_p); the reward is -(K_t - K_{t-1}), K = SIMPLE iterations run,
+so an episode's return is minus its total iterations.
+
+The config is a frozen dataclass: it is hashable by identity of its values, picklable (it travels to
+worker processes) and validated by :meth:`FoamEnvConfig.validate`, which raises a one-line
+``ValueError`` naming the bad field. Constructing a config does not validate it (so that
+``dataclasses.replace`` chains stay cheap); :class:`foam_bridge.env.FoamCaseEnv` validates on
+construction.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import MappingProxyType
+
+#: The paper's reference velocity (m/s); the observation divides |U|^2 by U_REF**2.
+U_REF = 44.2
+#: The tutorial's (and the paper's) step height h in metres.
+STEP_HEIGHT_H = 0.0127
+#: The paper's training criterion: initial residuals of U, k, omega < 1e-3 and p < 5e-2.
+TRAIN_CONVERGENCE: Mapping[str, float] = MappingProxyType({"U": 1e-3, "k": 1e-3, "omega": 1e-3, "p": 5e-2})
+#: The paper's test criterion: U, k, omega < 5e-4 (p < 5e-2).
+TEST_CONVERGENCE: Mapping[str, float] = MappingProxyType({"U": 5e-4, "k": 5e-4, "omega": 5e-4, "p": 5e-2})
+
+SIMPLE_VARIANTS = ("SIMPLE", "SIMPLEC")
+
+
+@dataclass(frozen=True)
+class FoamEnvConfig:
+    """Configuration of one simpleFoam solver-control environment.
+
+    Case:
+        case_dir: ``None`` -> the built-in backward-facing step template (foam_bridge/cases/
+            backward_facing_step, derived from OpenFOAM's backwardFacingStep2D tutorial); otherwise the
+            path of a user's simpleFoam case (``system/``, ``constant/`` with a mesh or a
+            ``system/blockMeshDict``, and ``0/``). The user's case is copied, never modified.
+        mesh_scale: resolution factor of the built-in case: every block's cell count is multiplied by it
+            and rounded (at least 1 cell per direction). 1.0 = the tutorial's 20,540 cells; 0.25 gives
+            1,264 cells (fast tests). Ignored for a user's case.
+        step_height: step height in metres of the built-in case. 0.0127 (h) is the paper's training
+            geometry, 0.0254 (2h) its second test geometry: only the step is deepened (the downstream
+            floor moves down), the inlet channel and the domain length stay the same.
+        inlet_velocity: inlet speed in m/s: a ``(low, high)`` range sampled uniformly per episode from
+            the seeded episode RNG, or a fixed float. ``reset(options={"inlet_velocity": v})``
+            overrides it for one episode. Inlet k and omega follow from it (see foam_bridge.case).
+        inlet_patch: name of the inlet patch (its U is set and its mean |U|^2 is observed).
+        velocity_field, pressure_field: names of the fields relaxed by alpha_u and alpha_p.
+        turbulence_fields: fields relaxed by ``relax_k_omega`` (or alpha_u); empty for laminar cases.
+        simple_variant: "SIMPLE" (``consistent no``) or "SIMPLEC" (``consistent yes``).
+
+    MDP:
+        interval: SIMPLE iterations per env step (the paper: 100).
+        max_iterations: iteration cap; reaching it ends the episode as ``truncated``.
+        action_low, action_high: box of (alpha_u, alpha_p); actions are clipped into it.
+        relax_k_omega: ``None`` -> the turbulence fields are relaxed with alpha_u; a float -> fixed.
+        convergence: field -> threshold on the solver's initial residual (vector fields: the largest
+            component), as simpleFoam's own ``SIMPLE.residualControl``. Default: the paper's training
+            criterion (TRAIN_CONVERGENCE); TEST_CONVERGENCE is its test criterion.
+        residual_features: extra observation entries: log10 of the latest initial residual of each
+            ``convergence`` field at each of the last N step boundaries (0 = the paper's 1-D state).
+        state_scale: the observed state is (mean_inlet |U|^2 + mean_cells |U|^2) / state_scale
+            (default U_REF**2 = 44.2**2, so the state is O(1)).
+        failure_penalty: reward of the step on which the solver failed (crashed, diverged, hung);
+            ``None`` -> as if it had run to max_iterations: -(max_iterations - K_{t-1}), so that the
+            episode's return is -max_iterations.
+        divergence_threshold: an initial residual above this (or NaN/Inf) ends the episode as
+            ``diverged``.
+
+    Host:
+        step_timeout_s: watchdog: wall-clock seconds one step may take before the solver counts as hung.
+        work_dir: parent directory of the per-env case directories (``None`` -> a fresh temporary
+            directory); nothing is written to the current directory.
+        keep_cases: keep the case directories after close() (for debugging).
+        openfoam_path: ``PATH`` used to locate simpleFoam/blockMesh (``None`` -> the caller's PATH).
+            The solver itself runs with a clean environment built from it.
+    """
+
+    case_dir: Path | str | None = None
+    mesh_scale: float = 1.0
+    step_height: float = STEP_HEIGHT_H
+    inlet_velocity: tuple[float, float] | float = (35.0, 65.0)
+    inlet_patch: str = "inlet"
+    velocity_field: str = "U"
+    pressure_field: str = "p"
+    turbulence_fields: tuple[str, ...] = ("k", "omega")
+    simple_variant: str = "SIMPLE"
+    interval: int = 100
+    max_iterations: int = 4000
+    action_low: tuple[float, float] = (0.2, 0.2)
+    action_high: tuple[float, float] = (0.95, 0.95)
+    relax_k_omega: float | None = None
+    convergence: Mapping[str, float] = field(default_factory=lambda: dict(TRAIN_CONVERGENCE))
+    residual_features: int = 0
+    state_scale: float = U_REF**2
+    failure_penalty: float | None = None
+    divergence_threshold: float = 1e3
+    step_timeout_s: float = 120.0
+    work_dir: Path | str | None = None
+    keep_cases: bool = False
+    openfoam_path: str | None = None
+
+    def validate(self) -> FoamEnvConfig:
+        """Check every field; raise a one-line ``ValueError`` naming the first bad one. Returns self."""
+        _check(self.mesh_scale > 0 and math.isfinite(self.mesh_scale), "mesh_scale", self.mesh_scale)
+        _check(self.step_height > 0 and math.isfinite(self.step_height), "step_height", self.step_height)
+        low, high = self.velocity_range
+        _check(0 < low <= high and math.isfinite(high), "inlet_velocity", self.inlet_velocity)
+        for name in ("inlet_patch", "velocity_field", "pressure_field"):
+            value = getattr(self, name)
+            _check(isinstance(value, str) and value != "", name, value, "a non-empty name")
+        _check(self.simple_variant in SIMPLE_VARIANTS, "simple_variant", self.simple_variant,
+               f"one of {SIMPLE_VARIANTS}")
+        _check(_is_int(self.interval) and self.interval >= 1, "interval", self.interval, "an integer >= 1")
+        _check(_is_int(self.max_iterations) and self.max_iterations >= self.interval, "max_iterations",
+               self.max_iterations, "an integer >= interval")
+        _check(len(self.action_low) == 2 and len(self.action_high) == 2, "action_low/action_high",
+               (self.action_low, self.action_high), "two values each")
+        for lo, hi in zip(self.action_low, self.action_high, strict=True):
+            _check(0 < lo <= hi <= 1, "action_low/action_high", (self.action_low, self.action_high),
+                   "0 < low <= high <= 1")
+        if self.relax_k_omega is not None:
+            _check(0 < self.relax_k_omega <= 1, "relax_k_omega", self.relax_k_omega, "in (0, 1]")
+        _check(len(self.convergence) > 0 and all(v > 0 for v in self.convergence.values()), "convergence",
+               dict(self.convergence), "a non-empty {field: threshold > 0}")
+        _check(_is_int(self.residual_features) and self.residual_features >= 0, "residual_features",
+               self.residual_features, "an integer >= 0")
+        _check(self.state_scale > 0, "state_scale", self.state_scale)
+        _check(self.step_timeout_s > 0, "step_timeout_s", self.step_timeout_s)
+        _check(self.divergence_threshold > 0, "divergence_threshold", self.divergence_threshold)
+        if self.failure_penalty is not None:
+            _check(math.isfinite(self.failure_penalty), "failure_penalty", self.failure_penalty, "finite")
+        return self
+
+    @property
+    def velocity_range(self) -> tuple[float, float]:
+        """(low, high) of the per-episode inlet velocity; low == high for a fixed velocity."""
+        if isinstance(self.inlet_velocity, int | float):
+            return float(self.inlet_velocity), float(self.inlet_velocity)
+        if len(self.inlet_velocity) != 2:
+            raise ValueError(f"inlet_velocity: expected a float or (low, high), got {self.inlet_velocity!r}")
+        return float(self.inlet_velocity[0]), float(self.inlet_velocity[1])
+
+    @property
+    def observation_size(self) -> int:
+        """Length of the observation vector: the paper's state plus the residual features."""
+        return 1 + self.residual_features * len(self.convergence)
+
+
+def _is_int(value: object) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def _check(ok: bool, name: str, value: object, expected: str = "a finite number > 0") -> None:
+    if not ok:
+        raise ValueError(f"FoamEnvConfig.{name}: expected {expected}, got {value!r}")

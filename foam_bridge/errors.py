@@ -1,0 +1,23 @@
+"""Exceptions of foam_bridge. Bad input is a ``ValueError`` (one line naming the problem)."""
+
+from __future__ import annotations
+
+
+class OpenFOAMNotFoundError(RuntimeError):
+    """OpenFOAM's binaries (simpleFoam, blockMesh) are not on the configured PATH."""
+
+
+class CaseError(ValueError):
+    """A case directory is unusable (missing file, unknown patch or field, unreadable dictionary)."""
+
+
+class SolverFailure(RuntimeError):
+    """The solver failed during an episode. Caught inside the env and turned into an outcome.
+
+    ``outcome`` is one of "crashed", "diverged", "hung"; the message is the recorded cause.
+    """
+
+    def __init__(self, outcome: str, cause: str) -> None:
+        super().__init__(cause)
+        self.outcome = outcome
+        self.cause = cause
