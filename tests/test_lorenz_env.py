@@ -126,6 +126,18 @@ def test_step_reward_compares_speed_with_threshold(z, expected):
     assert float(out.reward) == expected
 
 
+def test_velocity_and_reward_use_the_perturbed_parameters():
+    # Frozen state (0, 0, 20) with beta = 2: speed 2 z = 40 at the base beta (reward -10), 42 with
+    # d beta = +0.1, so the reward flips only if the action enters the velocity.
+    params = LorenzParams(dt=0.0, beta=2.0)
+    state = make_state([0.0, 0.0, 20.0], params)
+    base = STEP(KEY, state, jnp.zeros(3), params)
+    perturbed = STEP(KEY, state, jnp.array([0.0, 0.0, 0.1]), params)
+    assert float(base.reward) == -10.0 and float(perturbed.reward) == 10.0
+    np.testing.assert_allclose(np.asarray(perturbed.obs[3:]), [0.0, 0.0, -42.0], rtol=1e-6)
+    np.testing.assert_allclose(float(perturbed.info["speed"]), 42.0, rtol=1e-6)
+
+
 def test_step_reward_on_real_dynamics():
     params = LorenzParams()
     near_fixed_point = make_state(P_MINUS, params)
@@ -164,7 +176,7 @@ def test_terminal_penalty_only_on_the_last_step():
 
 
 @pytest.mark.parametrize(("rewards", "penalised"), [
-    ([-10] * 5 + [-10, -10, -10, 10, 10], True),  # window mean exactly -2
+    ([-10] * 4 + [10] + [-10, -10, -10, 10, 10], True),  # window mean exactly -2; the +10 before it
     ([-10] * 5 + [-10, -10, 10, 10, 10], False),  # window mean +2
     ([10] * 5 + [-10] * 5, True),  # only the window counts ...
     ([-10] * 5 + [10] * 5, False),  # ... not the steps before it
