@@ -1,0 +1,1 @@
+"""Learning agents (currently: pure-JAX PPO in jaxsimrl.agents.ppo)."""

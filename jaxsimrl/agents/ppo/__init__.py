@@ -1,0 +1,16 @@
+"""Pure-JAX PPO (PureJaxRL-style train loop, Brax-style module split).
+
+config.py (PPOConfig) | networks.py (actor-critic, LSTM with episode resets) | distribution.py (Gaussian
+squashed into the action box) | normalizer.py (running obs statistics) | rollout.py (experience, RunnerState)
+| losses.py (GAE, PPO loss) | learner.py (epochs x minibatches) | train.py (make_train, devices) |
+policy.py (make_policy) | evaluate.py (mean return over random initial states).
+"""
+
+from jaxsimrl.agents.ppo.config import PPOConfig
+from jaxsimrl.agents.ppo.evaluate import episode_returns
+from jaxsimrl.agents.ppo.policy import Policy, PolicyParams, make_policy
+from jaxsimrl.agents.ppo.rollout import RunnerState
+from jaxsimrl.agents.ppo.train import PPOTrainer, make_train
+
+__all__ = ["PPOConfig", "PPOTrainer", "Policy", "PolicyParams", "RunnerState", "episode_returns",
+           "make_policy", "make_train"]

@@ -1,0 +1,158 @@
+"""PPO hyper-parameters as one frozen, typed, validated dataclass.
+
+Defaults reproduce the paper's Lorenz setup (Pawar & Maulik, section 3.1): 2 workers (parallel envs),
+8000 env steps per update, 2e5 steps in total, 2 x 64 tanh layers followed by an LSTM of 256 cells,
+Adam at 2.5e-4. Fields the paper does not fix (gamma, lambda, epochs, ...) are tuned for this task; see
+benchmarks/RESULTS_ppo.md for what was tried.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any
+
+NETWORKS = ("lstm", "mlp")
+ACTIVATIONS = ("tanh", "relu")
+
+
+@dataclass(frozen=True)
+class PPOConfig:
+    """Everything that defines one PPO training run (besides the env and the seed)."""
+
+    num_envs: int = 2  # the paper's "workers"
+    steps_per_update: int = 8000  # split evenly: each env runs steps_per_update // num_envs steps
+    total_steps: int = 200_000
+    network: str = "lstm"
+    hidden_sizes: tuple[int, ...] = (64, 64)
+    lstm_size: int = 256
+    activation: str = "tanh"
+    lr: float = 2.5e-4
+    anneal_lr: bool = False
+    max_grad_norm: float = 0.5
+    gamma: float = 0.99
+    gae_lambda: float = 0.95
+    clip_eps: float = 0.2
+    ent_coef: float = 0.0
+    vf_coef: float = 0.5
+    clip_value: bool = False  # PPO2-style clipped value loss
+    normalize_advantages: bool = True
+    update_epochs: int = 4
+    num_minibatches: int = 4
+    seq_len: int = 50  # steps per training chunk (LSTM truncated backprop length)
+    normalize_obs: bool = True
+    obs_clip: float = 10.0  # normalised observations are clipped to +-obs_clip
+    reward_scale: float = 0.01  # rewards are multiplied by this before GAE (keeps values O(1))
+    init_log_std: float = -0.5  # initial log std of the pre-squash Gaussian
+    updates_per_chunk: int = 5  # updates per jitted run_chunk call (progress / checkpoint granularity)
+
+    # ---- derived sizes -------------------------------------------------------------------------
+    @property
+    def steps_per_env(self) -> int:
+        """Env steps each parallel env runs per update."""
+        return self.steps_per_update // self.num_envs
+
+    @property
+    def num_updates(self) -> int:
+        return self.total_steps // self.steps_per_update
+
+    @property
+    def chunks_per_env(self) -> int:
+        """Training sequences of length seq_len cut from each env's rollout."""
+        return self.steps_per_env // self.seq_len
+
+    # ---- validation / serialisation ------------------------------------------------------------
+    def validate(self) -> PPOConfig:
+        """Raise ValueError with a one-line message naming the first bad field; return self."""
+        _check_positive_ints(self, ("num_envs", "steps_per_update", "total_steps", "lstm_size",
+                                    "update_epochs", "num_minibatches", "seq_len", "updates_per_chunk"))
+        _check_positive_floats(self, ("lr", "max_grad_norm", "clip_eps", "obs_clip", "reward_scale"))
+        _check_unit_interval(self, ("gamma", "gae_lambda"))
+        _check_non_negative(self, ("ent_coef", "vf_coef"))
+        if self.network not in NETWORKS:
+            raise ValueError(f"network must be one of {NETWORKS}, got {self.network!r}")
+        if self.activation not in ACTIVATIONS:
+            raise ValueError(f"activation must be one of {ACTIVATIONS}, got {self.activation!r}")
+        if not self.hidden_sizes or any(not _is_int(h) or h <= 0 for h in self.hidden_sizes):
+            raise ValueError(f"hidden_sizes must be a non-empty list of positive ints, "
+                             f"got {self.hidden_sizes!r}")
+        if not isinstance(self.init_log_std, int | float) or not -10 <= self.init_log_std <= 2:
+            raise ValueError(f"init_log_std must be a number in [-10, 2], got {self.init_log_std!r}")
+        for flag in ("anneal_lr", "clip_value", "normalize_advantages", "normalize_obs"):
+            if not isinstance(getattr(self, flag), bool):
+                raise ValueError(f"{flag} must be true or false, got {getattr(self, flag)!r}")
+        self._validate_divisibility()
+        return self
+
+    def _validate_divisibility(self) -> None:
+        if self.steps_per_update % self.num_envs:
+            raise ValueError(f"steps_per_update ({self.steps_per_update}) must be divisible by "
+                             f"num_envs ({self.num_envs})")
+        if self.total_steps < self.steps_per_update:
+            raise ValueError(f"total_steps ({self.total_steps}) must be >= steps_per_update "
+                             f"({self.steps_per_update})")
+        if self.steps_per_env % self.seq_len:
+            raise ValueError(f"seq_len ({self.seq_len}) must divide the steps per env per update "
+                             f"({self.steps_per_env})")
+        if self.chunks_per_env % self.num_minibatches:
+            raise ValueError(f"num_minibatches ({self.num_minibatches}) must divide the chunks per env "
+                             f"({self.chunks_per_env} = {self.steps_per_env} steps / seq_len {self.seq_len})")
+
+    def to_dict(self) -> dict[str, Any]:
+        """A JSON-ready dict (tuples become lists)."""
+        out = dataclasses.asdict(self)
+        out["hidden_sizes"] = list(self.hidden_sizes)
+        return out
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> PPOConfig:
+        """Build and validate a config; unknown keys raise ValueError naming them."""
+        if not isinstance(data, dict):
+            raise ValueError(f"a PPO config must be a JSON object, got {type(data).__name__}")
+        known = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(data) - known)
+        if unknown:
+            raise ValueError(f"unknown PPO config key(s): {', '.join(unknown)}")
+        values = dict(data)
+        if "hidden_sizes" in values:
+            sizes = values["hidden_sizes"]
+            if not isinstance(sizes, list | tuple):
+                raise ValueError(f"hidden_sizes must be a list of positive ints, got {sizes!r}")
+            values["hidden_sizes"] = tuple(sizes)
+        return cls(**values).validate()
+
+
+def _is_int(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
+def _check_positive_ints(cfg: PPOConfig, names: tuple[str, ...]) -> None:
+    for name in names:
+        value = getattr(cfg, name)
+        if not _is_int(value) or value <= 0:
+            raise ValueError(f"{name} must be a positive integer, got {value!r}")
+
+
+def _check_positive_floats(cfg: PPOConfig, names: tuple[str, ...]) -> None:
+    for name in names:
+        value = getattr(cfg, name)
+        if not _is_number(value) or not 0 < value < float("inf"):
+            raise ValueError(f"{name} must be a positive number, got {value!r}")
+
+
+def _check_unit_interval(cfg: PPOConfig, names: tuple[str, ...]) -> None:
+    for name in names:
+        value = getattr(cfg, name)
+        if not _is_number(value) or not 0 <= value <= 1:
+            raise ValueError(f"{name} must be a number in [0, 1], got {value!r}")
+
+
+def _check_non_negative(cfg: PPOConfig, names: tuple[str, ...]) -> None:
+    for name in names:
+        value = getattr(cfg, name)
+        if not _is_number(value) or not 0 <= value < float("inf"):
+            raise ValueError(f"{name} must be a non-negative number, got {value!r}")

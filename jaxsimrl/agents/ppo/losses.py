@@ -1,0 +1,94 @@
+"""GAE(lambda) and the PPO clipped-surrogate loss.
+
+Bootstrapping convention: ``rewards[t]`` already includes ``gamma * V(final obs)`` for a step that
+*truncated* its episode (the rollout computes that value before resetting the env). ``dones[t]``
+(terminated or truncated) then cuts the recursion, so a terminated episode bootstraps nothing and a
+truncated one bootstraps exactly the value of its last real observation.
+"""
+
+from __future__ import annotations
+
+from typing import Any, NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+from jaxsimrl.agents.ppo.distribution import gaussian
+
+
+def compute_gae(rewards: jax.Array, values: jax.Array, dones: jax.Array, last_value: jax.Array,
+                gamma: float, gae_lambda: float) -> tuple[jax.Array, jax.Array]:
+    """Advantages and value targets for time-major (T, ...) arrays.
+
+    ``values[t]`` = V(obs_t); ``last_value`` = V(obs_T), the observation after the last step (ignored
+    where ``dones[T-1]``). Returns (advantages, targets = advantages + values).
+    """
+    not_done = 1.0 - dones.astype(values.dtype)
+    next_values = jnp.concatenate([values[1:], last_value[None]], axis=0)
+    deltas = rewards + gamma * next_values * not_done - values
+
+    def backward(carry: jax.Array, xs: tuple[jax.Array, jax.Array]) -> tuple[jax.Array, jax.Array]:
+        delta, nd = xs
+        adv = delta + gamma * gae_lambda * nd * carry
+        return adv, adv
+
+    _, advantages = jax.lax.scan(backward, jnp.zeros_like(last_value), (deltas, not_done), reverse=True)
+    return advantages, advantages + values
+
+
+class Batch(NamedTuple):
+    """One minibatch of training sequences, time-major (seq_len, B, ...)."""
+
+    obs: jax.Array  # normalised observations
+    starts: jax.Array  # episode-start flags (carry reset before the step)
+    u: jax.Array  # pre-squash actions
+    log_prob: jax.Array
+    value: jax.Array
+    advantage: jax.Array
+    target: jax.Array
+    carry: Any  # recurrent carry at the first step of each sequence, (B, ...)
+
+
+def global_mean(x: jax.Array, axis_name: str | None) -> jax.Array:
+    """Mean over the global batch; exact because every device holds an equal-size part."""
+    m = jnp.mean(x)
+    return m if axis_name is None else jax.lax.pmean(m, axis_name)
+
+
+def normalize_advantages(adv: jax.Array, axis_name: str | None) -> jax.Array:
+    """Standardise over the global minibatch."""
+    mean = global_mean(adv, axis_name)
+    var = global_mean(jnp.square(adv - mean), axis_name)
+    return (adv - mean) / (jnp.sqrt(var) + 1e-8)
+
+
+def ppo_loss(params: Any, apply_fn: Any, batch: Batch, config: Any) -> tuple[jax.Array, dict[str, jax.Array]]:
+    """Clipped surrogate + value loss - entropy bonus, averaged over this device's part of the batch.
+
+    No collectives in here on purpose: the caller averages gradients and metrics across devices
+    (pmean of equal-size local means = the global mean), and standardises advantages beforehand.
+    """
+    _, mean, log_std, value = apply_fn(params, batch.carry, batch.obs, batch.starts)
+    dist = gaussian(mean, log_std)
+    log_prob = dist.log_prob(batch.u)
+    log_ratio = log_prob - batch.log_prob
+    ratio = jnp.exp(log_ratio)
+    adv = batch.advantage
+    surrogate = jnp.minimum(ratio * adv, jnp.clip(ratio, 1 - config.clip_eps, 1 + config.clip_eps) * adv)
+    policy_loss = -jnp.mean(surrogate)
+
+    value_err = jnp.square(value - batch.target)
+    if config.clip_value:
+        clipped = batch.value + jnp.clip(value - batch.value, -config.clip_eps, config.clip_eps)
+        value_err = jnp.maximum(value_err, jnp.square(clipped - batch.target))
+    value_loss = 0.5 * jnp.mean(value_err)
+    entropy = jnp.mean(dist.entropy())
+    total = policy_loss + config.vf_coef * value_loss - config.ent_coef * entropy
+    metrics = {
+        "policy_loss": policy_loss,
+        "value_loss": value_loss,
+        "entropy": entropy,
+        "approx_kl": jnp.mean((ratio - 1) - log_ratio),
+        "clip_fraction": jnp.mean((jnp.abs(ratio - 1) > config.clip_eps).astype(jnp.float32)),
+    }
+    return total, metrics

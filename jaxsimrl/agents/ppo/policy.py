@@ -1,0 +1,66 @@
+"""Acting with a trained PPO agent (evaluation, the CLI's eval-lorenz).
+
+``policy.act(state_or_params, obs, carry, done, key, deterministic)`` takes any object with the two
+fields acting needs, ``params`` (network parameters) and ``normalizer`` (observation statistics): a
+:class:`RunnerState` (e.g. restored from a checkpoint) or a :class:`PolicyParams`. ``obs`` is (B, obs_dim)
+raw, ``done`` (B,) marks observations that start an episode (the carry is reset there), ``carry`` comes
+from ``initial_carry(B)`` or the previous call. Stochastic actions sample the Gaussian; deterministic
+ones map its mean into the box (see distribution.py). ``act`` is pure: jit and vmap it freely.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import jax
+from flax import struct
+
+from jaxsimrl.agents.ppo import distribution
+from jaxsimrl.agents.ppo.config import PPOConfig
+from jaxsimrl.agents.ppo.networks import Carry, initial_carry, make_network
+from jaxsimrl.agents.ppo.normalizer import NormalizerState, normalize
+
+
+@struct.dataclass
+class PolicyParams:
+    """The part of RunnerState that acting needs."""
+
+    params: Any
+    normalizer: NormalizerState
+
+
+class Policy:
+    """A stateless actor for ``config``'s network on ``env``'s action box."""
+
+    def __init__(self, config: PPOConfig, env: Any, env_params: Any = None) -> None:
+        self.config = config
+        params = env.default_params() if env_params is None else env_params
+        box = env.action_space(params)
+        self.low, self.high = box.low, box.high
+        self.network = make_network(config, int(box.shape[0]))
+
+    def initial_carry(self, batch_size: int) -> Carry:
+        return initial_carry(self.config, batch_size)
+
+    def act(self, state_or_params: Any, obs: jax.Array, carry: Carry, done: jax.Array, key: jax.Array,
+            deterministic: bool = True) -> tuple[jax.Array, Carry]:
+        """Actions (B, action_dim) inside the box and the next carry."""
+        if self.config.normalize_obs:
+            obs = normalize(state_or_params.normalizer, obs, self.config.obs_clip)
+        carry, mean, log_std, _ = self.network.apply(state_or_params.params, carry, obs[None], done[None])
+        mean = mean[0]
+        if deterministic:
+            u = mean
+        else:
+            keys = jax.random.split(key, mean.shape[0])
+            u, _ = jax.vmap(distribution.sample, in_axes=(0, 0, None))(keys, mean, log_std)
+        return distribution.to_box(u, self.low, self.high), carry
+
+
+def make_policy(config: PPOConfig, env: Any = None, env_params: Any = None) -> Policy:
+    """The policy of ``config`` on ``env`` (default: the Lorenz env with default params)."""
+    if env is None:
+        from jaxsimrl.envs.lorenz import Lorenz
+
+        env = Lorenz()
+    return Policy(config, env, env_params)

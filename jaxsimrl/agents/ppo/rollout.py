@@ -1,0 +1,159 @@
+"""Collect one update's worth of experience from this device's envs (a ``lax.scan`` over steps).
+
+The scan is nested: an outer scan over the ``chunks_per_env`` training sequences and an inner one over
+the ``seq_len`` steps of each, so the recurrent carry at the start of every chunk is stored without
+keeping the carry of every step. Env steps never auto-reset: after a step whose episode ended
+(terminated or truncated), the rollout resets that env and flags its next observation as an episode
+start (the network zeroes the carry there). For a truncated step it first evaluates the critic on the
+final (pre-reset) observation and adds ``gamma * V(final obs)`` to the stored reward (see losses.py).
+
+Random numbers are drawn per *global* env index and sliced to this device's envs, so sharding the envs
+over devices does not change any sample.
+"""
+
+from __future__ import annotations
+
+from typing import Any, NamedTuple
+
+import jax
+import jax.numpy as jnp
+from flax import struct
+
+from jaxsimrl.agents.ppo import distribution
+from jaxsimrl.agents.ppo.normalizer import NormalizerState, normalize
+
+
+@struct.dataclass
+class RunnerState:
+    """The whole learner + actor state: a pytree of arrays only (orbax-saveable).
+
+    ``params``, ``opt_state``, ``normalizer``, ``rng`` and ``update_step`` are replicated over devices;
+    ``env_state``, ``obs``, ``starts``, ``carry`` and ``episode_return`` have a leading env axis
+    (num_envs), sharded over devices.
+    """
+
+    params: Any
+    opt_state: Any
+    normalizer: NormalizerState
+    env_state: Any
+    obs: jax.Array  # (num_envs, obs_dim) raw observation the next step acts on
+    starts: jax.Array  # (num_envs,) bool: obs is the first observation of an episode
+    carry: Any  # recurrent state (num_envs, H) pair
+    episode_return: jax.Array  # (num_envs,) undiscounted return of the running episodes
+    rng: jax.Array  # raw uint32 PRNG key
+    update_step: jax.Array  # int32: updates done so far
+
+
+class Transition(NamedTuple):
+    """One step of every local env (arrays with a leading env axis)."""
+
+    obs: jax.Array  # normalised, as the network saw it
+    raw_obs: jax.Array  # for the normaliser statistics
+    starts: jax.Array
+    u: jax.Array
+    log_prob: jax.Array
+    value: jax.Array
+    reward: jax.Array  # scaled, plus the truncation bootstrap
+    done: jax.Array
+
+
+class EpisodeStats(NamedTuple):
+    return_sum: jax.Array  # summed returns of the episodes completed in this rollout (local envs)
+    count: jax.Array
+
+
+class RolloutContext(NamedTuple):
+    """What the rollout needs besides the state (static per trainer)."""
+
+    apply_fn: Any
+    env: Any
+    env_params: Any
+    config: Any
+    low: jax.Array
+    high: jax.Array
+    num_local_envs: int
+    axis_name: str | None
+
+
+def local_slice(ctx: RolloutContext, global_array: jax.Array) -> jax.Array:
+    """The rows of a per-global-env array that belong to this device."""
+    if ctx.axis_name is None:
+        return global_array
+    start = jax.lax.axis_index(ctx.axis_name) * ctx.num_local_envs
+    return jax.lax.dynamic_slice_in_dim(global_array, start, ctx.num_local_envs, axis=0)
+
+
+def local_keys(ctx: RolloutContext, key: jax.Array) -> jax.Array:
+    """One key per local env, drawn from the keys of all global envs."""
+    return local_slice(ctx, jax.random.split(key, ctx.config.num_envs))
+
+
+def observe(ctx: RolloutContext, normalizer: NormalizerState, obs: jax.Array) -> jax.Array:
+    """What the network sees: the (optionally) normalised observation."""
+    return normalize(normalizer, obs, ctx.config.obs_clip) if ctx.config.normalize_obs else obs
+
+
+def _env_step(ctx: RolloutContext, runner: RunnerState, key: jax.Array
+              ) -> tuple[RunnerState, Transition, EpisodeStats]:
+    act_key, step_key, reset_key = jax.random.split(key, 3)
+    obs = observe(ctx, runner.normalizer, runner.obs)
+    carry, mean, log_std, value = ctx.apply_fn(runner.params, runner.carry, obs[None], runner.starts[None])
+    sample = jax.vmap(distribution.sample, in_axes=(0, 0, None))
+    u, log_prob = sample(local_keys(ctx, act_key), mean[0], log_std)
+    action = distribution.to_box(u, ctx.low, ctx.high)
+    step = jax.vmap(ctx.env.step, in_axes=(0, 0, 0, None))(
+        local_keys(ctx, step_key), runner.env_state, action, ctx.env_params)
+    done = step.terminated | step.truncated
+    reward = step.reward * ctx.config.reward_scale
+    reward = reward + ctx.config.gamma * step.truncated * _bootstrap_value(ctx, runner, carry, step)
+    transition = Transition(obs, runner.obs, runner.starts, u, log_prob, value[0], reward, done)
+
+    episode_return = runner.episode_return + step.reward
+    stats = EpisodeStats(jnp.sum(jnp.where(done, episode_return, 0.0)), jnp.sum(done.astype(jnp.float32)))
+    reset_obs, reset_state = jax.vmap(ctx.env.reset, in_axes=(0, None))(local_keys(ctx, reset_key),
+                                                                         ctx.env_params)
+
+    def pick(fresh: jax.Array, old: jax.Array) -> jax.Array:
+        return jnp.where(done.reshape(done.shape + (1,) * (old.ndim - 1)), fresh, old)
+
+    runner = runner.replace(
+        env_state=jax.tree.map(pick, reset_state, step.state), obs=pick(reset_obs, step.obs), starts=done,
+        carry=carry, episode_return=jnp.where(done, 0.0, episode_return))
+    return runner, transition, stats
+
+
+def collect(ctx: RolloutContext, runner: RunnerState, key: jax.Array
+            ) -> tuple[RunnerState, Transition, Any, EpisodeStats]:
+    """Run ``steps_per_env`` steps in every local env.
+
+    Returns the advanced state, the transitions shaped (chunks, seq_len, local envs, ...), the carry at
+    the start of each chunk (chunks, local envs, ...) and the completed-episode statistics.
+    """
+    cfg = ctx.config
+
+    def chunk(runner: RunnerState, chunk_index: jax.Array) -> tuple[RunnerState, tuple]:
+        def step(inner: tuple[RunnerState, EpisodeStats], t: jax.Array) -> tuple[tuple, Transition]:
+            runner, stats = inner
+            runner, transition, new = _env_step(ctx, runner, jax.random.fold_in(key, t))
+            stats = EpisodeStats(stats.return_sum + new.return_sum, stats.count + new.count)
+            return (runner, stats), transition
+
+        start_carry = runner.carry
+        times = chunk_index * cfg.seq_len + jnp.arange(cfg.seq_len)
+        zero = EpisodeStats(jnp.float32(0.0), jnp.float32(0.0))
+        (runner, stats), transitions = jax.lax.scan(step, (runner, zero), times)
+        return runner, (transitions, start_carry, stats)
+
+    runner, (transitions, carries, stats) = jax.lax.scan(chunk, runner, jnp.arange(cfg.chunks_per_env))
+    return runner, transitions, carries, jax.tree.map(jnp.sum, stats)
+
+
+def _bootstrap_value(ctx: RolloutContext, runner: RunnerState, carry: Any, step: Any) -> jax.Array:
+    """V(final obs) of the steps that truncated; skipped (zeros) when no env truncated."""
+    def value_of_final_obs() -> jax.Array:
+        final = observe(ctx, runner.normalizer, step.obs)
+        no_start = jnp.zeros_like(runner.starts)
+        return ctx.apply_fn(runner.params, carry, final[None], no_start[None])[3][0]
+
+    return jax.lax.cond(jnp.any(step.truncated), value_of_final_obs,
+                        lambda: jnp.zeros(step.reward.shape, jnp.float32))

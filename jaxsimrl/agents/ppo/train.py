@@ -1,0 +1,156 @@
+"""The PPO train loop: a pure function of a key, jitted whole, sharded over devices.
+
+PureJaxRL-style: ``train(key)`` is one ``jit`` (init, then ``lax.scan`` over all updates); for
+progress reports and checkpoints, ``run_chunk(state)`` runs ``updates_per_chunk`` updates per jitted
+call on an explicit :class:`RunnerState`. Both run the same update under ``jax.shard_map`` over a 1-D
+mesh of devices (axis "envs"): envs (and their rollouts) are split over devices, gradients are
+``pmean``-ed and normaliser statistics merged with ``psum``, so the learning does not depend on the
+device count. One update = rollout (rollout.py) -> GAE + SGD (learner.py) -> normaliser update.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax.sharding import Mesh, NamedSharding
+from jax.sharding import PartitionSpec as P
+
+from jaxsimrl.agents.ppo import normalizer as norm
+from jaxsimrl.agents.ppo.config import PPOConfig
+from jaxsimrl.agents.ppo.learner import learn, make_optimizer
+from jaxsimrl.agents.ppo.networks import initial_carry, make_network
+from jaxsimrl.agents.ppo.rollout import RolloutContext, RunnerState, collect, observe
+
+AXIS = "envs"
+_NORMALIZER_SEED_SAMPLES = 1024  # reset observations that seed the normaliser before the first update
+_SHARDED_FIELDS = ("env_state", "obs", "starts", "carry", "episode_return")
+
+
+def _state_specs() -> RunnerState:
+    """PartitionSpec prefix tree of RunnerState: env-axis fields sharded, the rest replicated."""
+    names = RunnerState.__dataclass_fields__
+    fields = {name: (P(AXIS) if name in _SHARDED_FIELDS else P()) for name in names}
+    return RunnerState(**fields)
+
+
+class PPOTrainer:
+    """PPO on a pure-JAX env; build it with :func:`make_train`."""
+
+    def __init__(self, config: PPOConfig, env: Any, env_params: Any = None,
+                 devices: Sequence[jax.Device] | None = None) -> None:
+        self.config = config.validate()
+        self.env = env
+        self.env_params = env.default_params() if env_params is None else env_params
+        self.devices = list(jax.devices() if devices is None else devices)
+        if config.num_envs % len(self.devices):
+            raise ValueError(f"num_envs ({config.num_envs}) must be divisible by the number of devices "
+                             f"({len(self.devices)})")
+        self.mesh = Mesh(np.array(self.devices), (AXIS,))
+        self.num_updates = config.num_updates
+        self.num_chunks = math.ceil(self.num_updates / config.updates_per_chunk)
+        box = env.action_space(self.env_params)
+        self.action_dim = int(np.prod(box.shape))
+        self.network = make_network(config, self.action_dim)
+        self.tx, self.schedule = make_optimizer(config, self.num_updates)
+        self.ctx = RolloutContext(self.network.apply, env, self.env_params, config,
+                                  jnp.broadcast_to(box.low, box.shape), jnp.broadcast_to(box.high, box.shape),
+                                  config.num_envs // len(self.devices), AXIS)
+        self._specs = _state_specs()
+        self._chunk = jax.jit(self._sharded(self._run_updates, config.updates_per_chunk))
+        self.train = jax.jit(self._train)
+
+    # ---- public API ------------------------------------------------------------------------------
+    def init(self, key: jax.Array) -> RunnerState:
+        """A fresh RunnerState, placed on the mesh (env fields sharded, the rest replicated)."""
+        state = jax.jit(self._init)(key)
+        shardings = jax.tree.map(lambda spec: NamedSharding(self.mesh, spec), self._specs,
+                                 is_leaf=lambda x: isinstance(x, P))
+        return jax.tree.map(lambda spec_sharding, sub: jax.device_put(sub, spec_sharding),
+                            shardings, state, is_leaf=lambda x: isinstance(x, NamedSharding))
+
+    def run_chunk(self, state: RunnerState) -> tuple[RunnerState, dict[str, jax.Array]]:
+        """Run up to ``updates_per_chunk`` updates, never past ``num_updates``.
+
+        The metrics have one row per update actually run (fewer in the last chunk; none when training
+        is already complete).
+        """
+        done = int(state.update_step)
+        state, metrics = self._chunk(state)
+        ran = max(0, min(self.config.updates_per_chunk, self.num_updates - done))
+        return state, {name: value[:ran] for name, value in metrics.items()}
+
+    # ---- pure functions --------------------------------------------------------------------------
+    def _init(self, key: jax.Array) -> RunnerState:
+        cfg = self.config
+        net_key, env_key, norm_key, rng = jax.random.split(key, 4)
+        obs, env_state = jax.vmap(self.env.reset, in_axes=(0, None))(
+            jax.random.split(env_key, cfg.num_envs), self.env_params)
+        carry = initial_carry(cfg, cfg.num_envs)
+        starts = jnp.ones(cfg.num_envs, bool)
+        params = self.network.init(net_key, initial_carry(cfg, 1), obs[:1][None], starts[:1][None])
+        return RunnerState(params=params, opt_state=self.tx.init(params),
+                           normalizer=self._seed_normalizer(norm_key), env_state=env_state, obs=obs,
+                           starts=starts, carry=carry, episode_return=jnp.zeros(cfg.num_envs, jnp.float32),
+                           rng=rng, update_step=jnp.int32(0))
+
+    def _seed_normalizer(self, key: jax.Array) -> norm.NormalizerState:
+        """Statistics of many reset observations, so the first rollout already sees O(1) inputs."""
+        obs, _ = jax.vmap(self.env.reset, in_axes=(0, None))(
+            jax.random.split(key, _NORMALIZER_SEED_SAMPLES), self.env_params)
+        return norm.batch_stats(obs)
+
+    def _update(self, state: RunnerState) -> tuple[RunnerState, dict[str, jax.Array]]:
+        """One PPO update of this device's share of the envs (runs inside shard_map)."""
+        ctx, cfg = self.ctx, self.config
+        rng, rollout_key, learn_key = jax.random.split(state.rng, 3)
+        lr = self.schedule(state.update_step * cfg.update_epochs * cfg.num_minibatches)
+        state, transitions, carries, episodes = collect(ctx, state, rollout_key)
+        last_obs = observe(ctx, state.normalizer, state.obs)
+        last_value = self.network.apply(state.params, state.carry, last_obs[None], state.starts[None])[3][0]
+        params, opt_state, metrics = learn(ctx, self.tx, state.params, state.opt_state, transitions, carries,
+                                           last_value, learn_key)
+        normalizer = state.normalizer
+        if cfg.normalize_obs:
+            normalizer = norm.update(normalizer, transitions.raw_obs, AXIS)
+        returns, count = jax.lax.psum((episodes.return_sum, episodes.count), AXIS)
+        update_step = state.update_step + 1
+        metrics.update(
+            env_steps=update_step * cfg.steps_per_update,
+            mean_episode_return=jnp.where(count > 0, returns / jnp.maximum(count, 1.0), jnp.nan),
+            episodes=count.astype(jnp.int32), learning_rate=jnp.asarray(lr, jnp.float32))
+        state = state.replace(params=params, opt_state=opt_state, normalizer=normalizer, rng=rng,
+                              update_step=update_step)
+        return state, metrics
+
+    def _run_updates(self, state: RunnerState, count: int) -> tuple[RunnerState, dict[str, jax.Array]]:
+        """``count`` updates in a scan; updates past ``num_updates`` are skipped (state unchanged)."""
+        template = jax.eval_shape(self._update, state)[1]
+
+        def guarded(state: RunnerState, _: None) -> tuple[RunnerState, dict[str, jax.Array]]:
+            skip = lambda s: (s, jax.tree.map(lambda t: jnp.zeros(t.shape, t.dtype), template))  # noqa: E731
+            return jax.lax.cond(state.update_step < self.num_updates, self._update, skip, state)
+
+        return jax.lax.scan(guarded, state, None, length=count)
+
+    def _sharded(self, fn: Any, count: int) -> Any:
+        return jax.shard_map(lambda state: fn(state, count), mesh=self.mesh, in_specs=(self._specs,),
+                             out_specs=(self._specs, P()), check_vma=False)
+
+    def _train(self, key: jax.Array) -> tuple[RunnerState, dict[str, jax.Array]]:
+        return self._sharded(self._run_updates, self.num_updates)(self._init(key))
+
+
+def make_train(config: PPOConfig, env: Any = None, env_params: Any = None,
+               devices: Sequence[jax.Device] | None = None) -> PPOTrainer:
+    """Build a trainer; ``env`` defaults to the Lorenz env, ``env_params`` to ``env.default_params()``,
+    ``devices`` to all of ``jax.devices()`` (num_envs must be divisible by their number)."""
+    if env is None:
+        from jaxsimrl.envs.lorenz import Lorenz
+
+        env = Lorenz()
+    return PPOTrainer(config, env, env_params, devices)
