@@ -1,0 +1,18 @@
+"""jaxsimrl: deep RL (pure-JAX PPO) for controlling scientific simulations.
+
+Importing the package stays light (no JAX): it only registers the gymnasium id
+``jaxsimrl/Lorenz-v0`` with a string entry point, so JAX loads when the env is first made.
+"""
+
+from __future__ import annotations
+
+import gymnasium
+
+__version__ = "0.1.0"
+
+LORENZ_ENV_ID = "jaxsimrl/Lorenz-v0"
+
+if LORENZ_ENV_ID not in gymnasium.registry:  # re-imports (importlib.reload) must not warn about overrides
+    # max_episode_steps=None: the env terminates its own episodes after LorenzParams.episode_steps.
+    gymnasium.register(id=LORENZ_ENV_ID, entry_point="jaxsimrl.envs.gym_lorenz:LorenzGymEnv",
+                       max_episode_steps=None)
