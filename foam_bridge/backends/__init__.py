@@ -1,0 +1,36 @@
+"""Where the envs of a BatchedFoamEnv run: a local process pool ("local") or Ray actors ("ray").
+
+Both implement ``base.Backend``: ``run(requests) -> replies``, ``worker_pid(env_id)``, ``close()``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from foam_bridge.backends.base import WORKER_DIED, Backend, validate_pool
+from foam_bridge.backends.worker import Reply, Request, env_dir
+
+BACKENDS = ("local", "ray")
+
+__all__ = [
+    "BACKENDS", "WORKER_DIED", "Backend", "Reply", "Request", "env_dir", "make_backend", "validate_pool",
+]
+
+
+def make_backend(
+    name: str, cfg: Any, num_envs: int, pool: int, work_dir: Path, ray_address: str | None = None
+) -> Backend:
+    """Start ``pool`` workers of backend ``name`` for ``num_envs`` envs with case dirs under ``work_dir``."""
+    validate_pool(num_envs, pool)
+    if name == "local":
+        if ray_address is not None:
+            raise ValueError("ray_address is only meaningful with backend='ray'")
+        from foam_bridge.backends.local import LocalBackend
+
+        return LocalBackend(cfg, num_envs, pool, work_dir)
+    if name == "ray":
+        from foam_bridge.backends.ray_backend import RayBackend
+
+        return RayBackend(cfg, num_envs, pool, work_dir, ray_address)
+    raise ValueError(f"backend must be one of {BACKENDS}, got {name!r}")

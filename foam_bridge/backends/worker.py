@@ -1,0 +1,92 @@
+"""The code that runs inside a worker (a pool process or a Ray actor): it hosts FoamCaseEnv instances.
+
+A worker owns a fixed set of env ids. The driver sends it a batch of ``Request`` s (reset / step /
+close of one env each) and gets one ``Reply`` per request, in order. Envs are created lazily on their
+first request, in ``work_dir/env_<id>`` on the worker's own file system, so a restarted worker (after
+a crash) simply rebuilds its cases. Before an env is (re)created, solver processes left behind by a
+dead predecessor in that case directory are killed (see ``reaper``).
+
+Exceptions raised by an env are caught and returned as a failed ``Reply``: the driver decides what
+they mean (a failed step ends the episode; a failed reset is retried, then reported).
+"""
+
+from __future__ import annotations
+
+import os
+import traceback
+from pathlib import Path
+from typing import Any, NamedTuple
+
+from foam_bridge.backends.reaper import kill_processes_under
+
+METHODS = ("reset", "step", "close")
+
+
+class Request(NamedTuple):
+    """One call on one env: ``method`` in METHODS; ``args`` are its keyword arguments."""
+
+    env_id: int
+    method: str
+    args: dict[str, Any]
+
+
+class Reply(NamedTuple):
+    """The answer to one Request. ``ok`` False: ``error`` says why; ``worker_died`` marks a lost worker."""
+
+    env_id: int
+    ok: bool
+    value: Any = None
+    error: str = ""
+    worker_died: bool = False
+
+
+def env_dir(work_dir: Path, env_id: int) -> Path:
+    """The case directory FoamCaseEnv(cfg, work_dir, env_id) uses (each env its own; nothing in the cwd)."""
+    return Path(work_dir) / f"env_{env_id}"
+
+
+class EnvHost:
+    """The FoamCaseEnv instances of one worker, created on demand, driven by Requests."""
+
+    def __init__(self, cfg: Any, work_dir: Path) -> None:
+        self.cfg = cfg
+        self.work_dir = Path(work_dir)
+        self.envs: dict[int, Any] = {}
+
+    def _env(self, env_id: int) -> Any:
+        if env_id not in self.envs:
+            from foam_bridge.env import FoamCaseEnv  # imported here: the driver never needs it
+
+            kill_processes_under(env_dir(self.work_dir, env_id))
+            self.envs[env_id] = FoamCaseEnv(self.cfg, work_dir=self.work_dir, env_id=env_id)
+        return self.envs[env_id]
+
+    def handle(self, request: Request) -> Reply:
+        """Run one request; an exception becomes a failed Reply naming it (the worker keeps serving)."""
+        try:
+            if request.method == "close":
+                env = self.envs.pop(request.env_id, None)
+                if env is not None:
+                    env.close()
+                return Reply(request.env_id, True)
+            if request.method not in METHODS:
+                raise ValueError(f"unknown method {request.method!r}")
+            value = getattr(self._env(request.env_id), request.method)(**request.args)
+            return Reply(request.env_id, True, value)
+        except Exception as err:  # noqa: BLE001 - reported to the driver, which owns the policy
+            last = traceback.extract_tb(err.__traceback__)[-1:]
+            where = f" at {last[0].filename}:{last[0].lineno}" if last else ""
+            return Reply(request.env_id, False, error=f"{type(err).__name__}: {err}{where}")
+
+    def handle_batch(self, requests: list[Request]) -> list[Reply]:
+        """Run requests in order (envs of one worker share its core, so sequential is right)."""
+        return [self.handle(request) for request in requests]
+
+    def close(self) -> None:
+        """Close every env (kills their solvers)."""
+        for env_id in list(self.envs):
+            self.handle(Request(env_id, "close", {}))
+
+    def pid(self) -> int:
+        """The worker's process id (tests kill it to simulate a crashed worker)."""
+        return os.getpid()

@@ -1,0 +1,239 @@
+"""Constant-factor grid study: iterations to convergence for every (alpha_u, alpha_p) on a grid.
+
+This is the tuned-constant baseline the paper never reported: every cell is one episode with the same
+action (alpha_u, alpha_p) at every step, run in parallel on the local worker pool (one env per pool
+slot; a slot takes the next cell when its episode ends). Results go to ``grid.csv`` (columns
+GRID_COLUMNS, written atomically) and ``grid.png`` (a heatmap in the style of the paper's Fig. 3:
+iterations annotated in every cell, crashed and non-converged cells hatched and labelled, the best
+cell framed).
+
+Cells whose episode ends with a failure keep the iteration count at which it happened ("crash @ K");
+a cell that hit ``max_iterations`` is shown as ">K". The action box of the config is widened to the
+grid so that constant factors are never clipped.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import io
+import math
+import os
+import shutil
+import tempfile
+import time
+from collections import deque
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from foam_bridge.backends import WORKER_DIED, Reply, Request, make_backend
+from foam_bridge.config import FoamEnvConfig
+from jaxsimrl.runs.atomic import atomic_write_bytes, atomic_write_text
+
+GRID_COLUMNS = ("alpha_u", "alpha_p", "iterations", "outcome", "wall_time_s")
+GRID_SEED = 0  # fixed inlet velocity makes the seed irrelevant to the physics; fixed for reproducibility
+
+
+@dataclass(frozen=True)
+class GridCell:
+    """Result of one constant-factor episode."""
+
+    alpha_u: float
+    alpha_p: float
+    iterations: int
+    outcome: str
+    wall_time_s: float
+    cause: str = ""
+
+
+def check_factors(values: Sequence[float], name: str) -> tuple[float, ...]:
+    """The factors as a tuple; one-line ValueError if empty or a value is outside (0, 1]."""
+    if len(values) == 0:
+        raise ValueError(f"{name}: give at least one relaxation factor")
+    for value in values:
+        if not (math.isfinite(value) and 0 < value <= 1):
+            raise ValueError(f"{name}: relaxation factors must be in (0, 1], got {value!r}")
+    return tuple(float(v) for v in values)
+
+
+def grid_config(cfg: FoamEnvConfig, alpha_u: Sequence[float], alpha_p: Sequence[float]) -> FoamEnvConfig:
+    """``cfg`` with its action box widened to cover the grid (constant factors must not be clipped)."""
+    low = (min(min(alpha_u), cfg.action_low[0]), min(min(alpha_p), cfg.action_low[1]))
+    high = (max(max(alpha_u), cfg.action_high[0]), max(max(alpha_p), cfg.action_high[1]))
+    return dataclasses.replace(cfg, action_low=low, action_high=high).validate()
+
+
+class _Slot:
+    """One pool slot running one cell's episode."""
+
+    def __init__(self, index: int, pair: tuple[float, float]) -> None:
+        self.index = index
+        self.action = np.asarray(pair, np.float64)
+        self.started = time.monotonic()
+        self.iterations = 0
+
+    def cell(self, iterations: int, outcome: str, cause: str = "", wall_time_s: float | None = None) \
+            -> GridCell:
+        """The finished cell; wall time from the episode record if there is one, else host-measured."""
+        elapsed = time.monotonic() - self.started if wall_time_s is None else wall_time_s
+        alpha_u, alpha_p = (float(a) for a in self.action)
+        return GridCell(alpha_u, alpha_p, int(iterations), outcome, float(elapsed), cause)
+
+
+def run_grid(
+    cfg: FoamEnvConfig,
+    alpha_u: Sequence[float],
+    alpha_p: Sequence[float],
+    pool: int = 1,
+    work_dir: str | os.PathLike[str] | None = None,
+    on_cell: Callable[[GridCell], None] | None = None,
+) -> list[GridCell]:
+    """Run every (alpha_u, alpha_p) pair with constant factors; cells come back in row-major grid order."""
+    alpha_u, alpha_p = check_factors(alpha_u, "alpha_u"), check_factors(alpha_p, "alpha_p")
+    if isinstance(pool, bool) or not isinstance(pool, int) or pool < 1:
+        raise ValueError(f"pool must be an integer >= 1, got {pool!r}")
+    cfg = grid_config(cfg, alpha_u, alpha_p)
+    pairs = [(u, p) for u in alpha_u for p in alpha_p]
+    slots = min(pool, len(pairs))
+    chosen = work_dir if work_dir is not None else cfg.work_dir
+    root = Path(tempfile.mkdtemp(prefix="foam_grid_")) if chosen is None else Path(chosen)
+    backend = make_backend("local", cfg, slots, slots, root)
+    results: list[GridCell | None] = [None] * len(pairs)
+    try:
+        _drive(backend, pairs, slots, results, on_cell or (lambda cell: None))
+    finally:
+        backend.close()
+        if chosen is None:
+            shutil.rmtree(root, ignore_errors=True)
+    return results  # type: ignore[return-value]
+
+
+def _drive(backend: Any, pairs: list, slots: int, results: list, on_cell: Callable[[GridCell], None]) -> None:
+    """Keep every slot busy: start the next cell where an episode ended, step all running ones together."""
+    queue = deque(enumerate(pairs))
+    active: dict[int, _Slot] = {}
+
+    def finish(slot_id: int, cell: GridCell) -> None:
+        results[active.pop(slot_id).index] = cell
+        on_cell(cell)
+
+    while queue or active:
+        starting = [s for s in range(slots) if s not in active and queue]
+        for slot_id in starting:
+            active[slot_id] = _Slot(*queue.popleft())
+        resets = [Request(s, "reset", {"seed": GRID_SEED, "options": None}) for s in starting]
+        for reply in backend.run(resets) if resets else []:
+            if not reply.ok:
+                _raise_if_bad_input(reply)
+                finish(reply.env_id, active[reply.env_id].cell(0, "crashed", _cause(reply)))
+        steps = [Request(s, "step", {"action": slot.action}) for s, slot in active.items()]
+        for reply in backend.run(steps) if steps else []:
+            slot = active[reply.env_id]
+            if not reply.ok:
+                finish(reply.env_id, slot.cell(slot.iterations, "crashed", _cause(reply)))
+                continue
+            _, _, terminated, truncated, info = reply.value
+            slot.iterations = int(info["iterations"])
+            if terminated or truncated:
+                record = info.get("episode") or {}
+                finish(reply.env_id, slot.cell(slot.iterations, info["outcome"], info.get("cause", ""),
+                                               record.get("wall_time_s")))
+
+
+def _cause(reply: Reply) -> str:
+    return WORKER_DIED if reply.worker_died else reply.error
+
+
+def _raise_if_bad_input(reply: Reply) -> None:
+    """A case or config the env rejects would fail every cell alike: stop with its one-line message."""
+    if reply.error.startswith(("ValueError", "CaseError", "OpenFOAMNotFoundError")):
+        raise ValueError(reply.error.split(" at ")[0])
+
+
+def write_grid_csv(cells: Sequence[GridCell], path: str | os.PathLike[str]) -> None:
+    """``path`` <- one row per cell with GRID_COLUMNS, atomically."""
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(GRID_COLUMNS)
+    for cell in cells:
+        row = (cell.alpha_u, cell.alpha_p, cell.iterations, cell.outcome, f"{cell.wall_time_s:.3f}")
+        writer.writerow(row)
+    atomic_write_text(path, buffer.getvalue())
+
+
+def read_grid_csv(path: str | os.PathLike[str]) -> list[GridCell]:
+    """Cells back from a grid.csv (for plotting again or comparing runs)."""
+    with open(path, newline="") as handle:
+        return [GridCell(float(r["alpha_u"]), float(r["alpha_p"]), int(r["iterations"]), r["outcome"],
+                         float(r["wall_time_s"])) for r in csv.DictReader(handle)]
+
+
+def best_cell(cells: Sequence[GridCell]) -> GridCell | None:
+    """The converged cell with the fewest iterations (ties: the first in grid order), or None."""
+    converged = [c for c in cells if c.outcome == "converged"]
+    return min(converged, key=lambda c: c.iterations) if converged else None
+
+
+def cell_label(cell: GridCell) -> str:
+    """Text written in a heatmap cell."""
+    if cell.outcome == "converged":
+        return str(cell.iterations)
+    if cell.outcome == "truncated":
+        return f">{cell.iterations}"
+    return f"{cell.outcome}\n@{cell.iterations}"
+
+
+def plot_grid(cells: Sequence[GridCell], path: str | os.PathLike[str], title: str = "") -> None:
+    """Heatmap of iterations (rows alpha_u, columns alpha_p) written atomically as a PNG to ``path``."""
+    from matplotlib import colormaps
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.colors import Normalize
+    from matplotlib.figure import Figure
+    from matplotlib.patches import Patch, Rectangle
+
+    us = sorted({c.alpha_u for c in cells})
+    ps = sorted({c.alpha_p for c in cells})
+    values = np.full((len(us), len(ps)), np.nan)
+    for cell in cells:
+        if cell.outcome == "converged":
+            values[us.index(cell.alpha_u), ps.index(cell.alpha_p)] = cell.iterations
+    fig = Figure(figsize=(1.3 * len(ps) + 3.2, 1.0 * len(us) + 2.2))
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    finite = values[np.isfinite(values)]
+    norm = Normalize(finite.min(), finite.max() if finite.max() > finite.min() else finite.min() + 1) \
+        if finite.size else Normalize(0, 1)
+    cmap = colormaps["RdYlGn_r"].with_extremes(bad="white")  # few iterations green, many red
+    image = ax.imshow(np.ma.masked_invalid(values), cmap=cmap, norm=norm, origin="lower", aspect="auto")
+    fig.colorbar(image, ax=ax, label="SIMPLE iterations to convergence")
+    best = best_cell(cells)
+    for cell in cells:
+        row, col = us.index(cell.alpha_u), ps.index(cell.alpha_p)
+        if cell.outcome != "converged":
+            hatch, face = ("xx", "0.6") if cell.outcome != "truncated" else ("//", "0.85")
+            ax.add_patch(Rectangle((col - 0.5, row - 0.5), 1, 1, facecolor=face, hatch=hatch, edgecolor="0.4",
+                                   linewidth=0))
+        is_best = cell == best
+        ax.text(col, row, cell_label(cell), ha="center", va="center", fontsize=10,
+                fontweight="bold" if is_best else "normal",
+                bbox={"facecolor": "white", "alpha": 0.7, "edgecolor": "none", "pad": 1})
+        if is_best:
+            ax.add_patch(Rectangle((col - 0.47, row - 0.47), 0.94, 0.94, fill=False, edgecolor="blue",
+                                   linewidth=3))
+    ax.set_xticks(range(len(ps)), [f"{p:g}" for p in ps])
+    ax.set_yticks(range(len(us)), [f"{u:g}" for u in us])
+    ax.set_xlabel(r"$\alpha_p$ (pressure)")
+    ax.set_ylabel(r"$\alpha_u$ (momentum)")
+    ax.set_title(title, fontsize=10)
+    ax.legend(handles=[Patch(facecolor="0.6", hatch="xx", edgecolor="0.4", label="crashed / diverged / hung"),
+                       Patch(facecolor="0.85", hatch="//", edgecolor="0.4", label="not converged (cap)"),
+                       Patch(fill=False, edgecolor="blue", linewidth=3, label="best")],
+              loc="upper center", bbox_to_anchor=(0.5, -0.18), ncol=3, fontsize=8, frameon=False)
+    fig.tight_layout()
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=120)
+    atomic_write_bytes(path, buffer.getvalue())
