@@ -1,0 +1,71 @@
+"""Training progress on the terminal: a live rich bar on a TTY, one plain line per chunk otherwise.
+
+The bar shows env steps done / total, the steps per second of the last chunk and the latest mean
+episode return. Plain lines (logs, CI, pipes) carry the same numbers, so nothing is lost off a TTY.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from typing import TextIO
+
+from rich.console import Console
+from rich.progress import (
+    BarColumn,
+    MofNCompleteColumn,
+    Progress,
+    TextColumn,
+    TimeElapsedColumn,
+    TimeRemainingColumn,
+)
+
+
+class TrainingProgress:
+    """Context manager; call :meth:`update` after every chunk."""
+
+    def __init__(self, total_steps: int, done_steps: int = 0, stream: TextIO | None = None,
+                 live: bool | None = None) -> None:
+        self.stream = stream if stream is not None else sys.stdout
+        self.console = Console(file=self.stream, highlight=False)
+        self.live = self.console.is_terminal if live is None else live
+        self.total_steps = total_steps
+        self.done_steps = done_steps
+        self._progress: Progress | None = None
+        self._task = None
+
+    def __enter__(self) -> TrainingProgress:
+        if self.live:
+            self._progress = Progress(
+                TextColumn("[bold]training"),
+                BarColumn(),
+                MofNCompleteColumn(),
+                TextColumn("env steps  {task.fields[rate]} steps/s  mean return {task.fields[ret]}"),
+                TimeElapsedColumn(),
+                TimeRemainingColumn(),
+                console=self.console,
+            )
+            self._progress.start()
+            self._task = self._progress.add_task("train", total=self.total_steps, completed=self.done_steps,
+                                                 rate="-", ret="-")
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self._progress is not None:
+            self._progress.stop()
+
+    def update(self, env_steps: int, steps_per_s: float, mean_return: float, update: int,
+               num_updates: int) -> None:
+        """Report the state after a chunk (``mean_return`` NaN when no episode has ended yet)."""
+        self.done_steps = env_steps
+        rate = f"{steps_per_s:,.0f}"
+        ret = "-" if not math.isfinite(mean_return) else f"{mean_return:,.1f}"
+        if self._progress is not None:
+            self._progress.update(self._task, completed=env_steps, rate=rate, ret=ret)
+        else:
+            steps = f"{env_steps:,}/{self.total_steps:,}"
+            self.print(f"update {update}/{num_updates}  env steps {steps}  {rate} steps/s  mean return {ret}")
+
+    def print(self, text: str) -> None:
+        """A message that does not disturb the live bar."""
+        self.console.print(text, soft_wrap=True)

@@ -1,0 +1,118 @@
+"""The chunked training loop over a run directory: train a chunk, record it, checkpoint it, repeat.
+
+Any trainer with ``run_chunk(state) -> (state, metrics)`` and ``num_updates`` works (see
+:mod:`jaxsimrl.agents.ppo`). After every chunk, in this order and with Ctrl-C held back until all
+three are on disk: the metrics rows, the checkpoint (named by the number of updates done) and
+summary.json. A run interrupted anywhere therefore resumes from a checkpoint whose updates all have
+metrics rows, and :meth:`MetricsLog.load` drops the rows of a chunk whose checkpoint never landed.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import signal
+import threading
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from typing import Any
+
+import jax
+import numpy as np
+
+from jaxsimrl.runs.checkpoint import Checkpoints
+from jaxsimrl.runs.progress import TrainingProgress
+from jaxsimrl.runs.run_dir import MetricsLog, Row, RunDir, summarise
+
+ChunkHook = Callable[[int], None]
+
+
+@contextlib.contextmanager
+def interrupts_deferred() -> Iterator[None]:
+    """Hold SIGINT back until the block is done, then raise KeyboardInterrupt (main thread only)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    received: list[int] = []
+    previous = signal.signal(signal.SIGINT, lambda signum, frame: received.append(signum))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    if received:
+        raise KeyboardInterrupt
+
+
+def chunk_rows(metrics: dict[str, Any], first_update: int, count: int, steps_before: int,
+               wall_before: float, chunk_time: float) -> list[Row]:
+    """One row per update of a chunk. The chunk runs as one jitted call, so its time is shared evenly
+    between its updates: ``wall_time_s`` is interpolated and ``steps_per_s`` is the chunk's rate."""
+    host = {name: np.asarray(value)[:count] for name, value in metrics.items()}
+    rate = (int(host["env_steps"][-1]) - steps_before) / chunk_time if chunk_time > 0 else math.nan
+    rows = []
+    for i in range(count):
+        row: Row = {"update": first_update + i, "env_steps": int(host["env_steps"][i]),
+                    "wall_time_s": wall_before + chunk_time * (i + 1) / count, "steps_per_s": rate}
+        row.update({name: _scalar(values[i]) for name, values in host.items() if name != "env_steps"})
+        rows.append(row)
+    return rows
+
+
+def _scalar(value: np.ndarray) -> int | float:
+    return int(value) if np.issubdtype(value.dtype, np.integer) else float(value)
+
+
+def latest_return(rows: list[Row]) -> float:
+    """The mean episode return of the newest update in which an episode ended (NaN if none)."""
+    for row in reversed(rows):
+        if row.get("episodes", 0) > 0 and math.isfinite(row["mean_episode_return"]):
+            return float(row["mean_episode_return"])
+    return math.nan
+
+
+@dataclass
+class Session:
+    """Everything a training loop writes to besides the state itself."""
+
+    run: RunDir
+    trainer: Any  # has run_chunk(state) -> (state, metrics) and num_updates
+    log: MetricsLog
+    checkpoints: Checkpoints
+    meta: dict[str, Any]  # JSON stored with every checkpoint (the run's config record)
+    summary_extra: dict[str, Any] = field(default_factory=dict)  # copied into summary.json
+
+    def write_summary(self) -> dict[str, Any]:
+        done = int(self.log.rows[-1]["update"]) if self.log.rows else 0
+        summary = summarise(self.log.rows, {**self.summary_extra, "num_updates": self.trainer.num_updates,
+                                            "complete": done >= self.trainer.num_updates})
+        self.run.write_summary(summary)
+        return summary
+
+
+def train(session: Session, state: Any, done: int, progress: TrainingProgress,
+          on_chunk: ChunkHook | None = None) -> Any:
+    """Run chunks from ``done`` updates until ``trainer.num_updates``; returns the final state.
+
+    ``on_chunk(updates_done)`` is called after each chunk is on disk (tests use it to stop a run at a
+    chosen point, as a crash would).
+    """
+    trainer, log = session.trainer, session.log
+    while done < trainer.num_updates:
+        started = time.perf_counter()
+        state, metrics = trainer.run_chunk(state)
+        metrics = jax.device_get(metrics)  # waits for the chunk, so the timing below is honest
+        chunk_time = time.perf_counter() - started
+        count = min(len(metrics["env_steps"]), trainer.num_updates - done)
+        rows = chunk_rows(metrics, done + 1, count, log.env_steps, log.wall_time_s, chunk_time)
+        done += count
+        with interrupts_deferred():
+            log.extend(rows)
+            session.checkpoints.save(done, state, {**session.meta, "update": done, "env_steps": log.env_steps,
+                                                   "wall_time_s": log.wall_time_s})
+            session.write_summary()
+        progress.update(log.env_steps, rows[-1]["steps_per_s"], latest_return(log.rows), done,
+                        trainer.num_updates)
+        if on_chunk is not None:
+            on_chunk(done)
+    return state
