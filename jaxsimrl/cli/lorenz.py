@@ -1,0 +1,281 @@
+"""``jaxsimrl train-lorenz`` and ``jaxsimrl eval-lorenz``: PPO on the Lorenz chaos-restoration task.
+
+train-lorenz resolves a PPOConfig (PPOConfig defaults = the paper's setup, then ``--config FILE``,
+then flags), creates a run directory (see :mod:`jaxsimrl.runs.run_dir`) and trains chunk by chunk with a
+checkpoint after each (:mod:`jaxsimrl.runs.training`). ``--resume RUN_DIR`` continues the run with its
+saved config. eval-lorenz rolls out a run's last checkpoint (:mod:`jaxsimrl.evaluation`).
+JAX is imported inside the run functions so ``--help`` and flag errors stay instant.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import shutil
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from jaxsimrl.cli.errors import UsageError, positive_float, positive_int
+
+# PPOConfig fields with a command-line flag: (flag, type, help). Their defaults are PPOConfig's.
+KNOBS: tuple[tuple[str, Any, str], ...] = (
+    ("num_envs", positive_int, "parallel environments, the paper's workers (paper: 2; must divide "
+                               "--steps-per-update)"),
+    ("total_steps", positive_int, "env steps to train for, e.g. 2e5 (paper: 2e5); with --resume it may "
+                                  "be raised to train further"),
+    ("steps_per_update", positive_int, "env steps per PPO update over all envs (paper: 8000)"),
+    ("lr", positive_float, "Adam learning rate (paper: 2.5e-4)"),
+    ("gamma", float, "discount factor in [0, 1]"),
+    ("gae_lambda", float, "GAE lambda in [0, 1]"),
+    ("clip_eps", positive_float, "PPO clipping epsilon"),
+    ("ent_coef", float, "entropy bonus coefficient (>= 0)"),
+    ("update_epochs", positive_int, "SGD epochs over each update's batch"),
+    ("num_minibatches", positive_int, "minibatches per epoch (must divide the sequences per env)"),
+    ("seq_len", positive_int, "training sequence length, the LSTM's truncated-backprop window (must "
+                              "divide the steps per env per update)"),
+    ("updates_per_chunk", positive_int, "updates per jitted chunk: progress, metrics-file and "
+                                        "checkpoint granularity"),
+)
+NETWORKS = ("lstm", "mlp")
+INTERRUPTED = 130
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add train-lorenz and eval-lorenz to the ``jaxsimrl`` dispatcher."""
+    train = subparsers.add_parser(
+        "train-lorenz", help="train PPO to keep the transiently chaotic Lorenz system chaotic",
+        description="Train a PPO agent on the Lorenz chaos-restoration task (Pawar & Maulik, sec. 3.1). "
+                    "Without flags it runs the paper's config (PPOConfig defaults: 2 envs, 8000 steps per "
+                    "update, 2e5 steps, 2x64 tanh + LSTM 256). Precedence: defaults < --config < flags.")
+    train.add_argument("--config", metavar="FILE.json", help="a PPOConfig as a JSON object, e.g. "
+                       "experiments/lorenz_paper.json (unknown keys are an error)")
+    for name, kind, text in KNOBS:
+        train.add_argument("--" + name.replace("_", "-"), dest=name, type=kind, metavar="N" if kind is
+                           positive_int else "X", help=text + " (default: from --config, else PPOConfig)")
+    train.add_argument("--network", choices=NETWORKS, help="lstm (the paper's: 2x64 tanh then LSTM 256) "
+                       "or mlp (2x64 tanh only) (default: lstm)")
+    train.add_argument("--seed", type=_seed, help="PRNG seed; the same seed and config give the same "
+                       "numbers on the same machine (default: 0)")
+    train.add_argument("--out", metavar="DIR", help="run directory to create; must not hold anything yet "
+                       "(default: runs/lorenz-<UTC timestamp>)")
+    train.add_argument("--resume", metavar="RUN_DIR", help="continue RUN_DIR from its last checkpoint with "
+                       "its saved config; only --total-steps may be given (to raise it)")
+    train.set_defaults(func=run_train)
+
+    evaluate = subparsers.add_parser(
+        "eval-lorenz", help="evaluate a trained Lorenz agent against the uncontrolled system",
+        description="Load RUN_DIR's last checkpoint; plot the controlled and uncontrolled trajectories "
+                    "from (1, 12, 9) with (sigma, rho, beta) = (10, 20, 8/3) into "
+                    "RUN_DIR/eval_trajectory.png; "
+                    "measure the mean return and the fraction of steps with |velocity| > 40 over random "
+                    "initial states (uniform in [-40, 40]^3) and write them to RUN_DIR/eval.json.")
+    evaluate.add_argument("run_dir", metavar="RUN_DIR", help="a run directory written by train-lorenz")
+    evaluate.add_argument("--episodes", type=positive_int, default=32, metavar="N",
+                          help="4000-step episodes from random initial states (default: 32)")
+    evaluate.add_argument("--stochastic", action="store_true",
+                          help="sample actions from the policy instead of taking its mean action")
+    evaluate.add_argument("--seed", type=_seed, default=0, help="PRNG seed of the initial states and of "
+                          "sampled actions (default: 0)")
+    evaluate.set_defaults(func=run_eval)
+
+
+def _seed(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}") from None
+    if not 0 <= value < 2**32:
+        raise argparse.ArgumentTypeError(f"expected an integer in [0, 2**32), got {text!r}")
+    return value
+
+
+# ---- train-lorenz ------------------------------------------------------------------------------------
+@dataclass
+class TrainPlan:
+    """What train-lorenz will do, resolved from the flags before anything heavy happens."""
+
+    config: Any  # PPOConfig
+    seed: int
+    run_path: Path
+    resume: bool
+    record: dict[str, Any]  # config.json of a resumed run
+
+
+def run_train(args: argparse.Namespace, on_chunk: Any = None) -> int:
+    """Entry point of train-lorenz; ``on_chunk(updates_done)`` is a test hook (see runs.training.train)."""
+    plan = _resume_plan(args) if args.resume else _fresh_plan(args)
+    import jax
+
+    from jaxsimrl.agents.ppo import make_train
+    from jaxsimrl.envs.lorenz import Lorenz
+    from jaxsimrl.runs.checkpoint import Checkpoints
+    from jaxsimrl.runs.progress import TrainingProgress
+    from jaxsimrl.runs.run_dir import MetricsLog, RunDir
+    from jaxsimrl.runs.training import Session, train
+
+    try:
+        trainer = make_train(plan.config, Lorenz())
+    except ValueError as err:
+        raise UsageError(f"invalid config: {err}") from None
+    state = trainer.init(jax.random.PRNGKey(plan.seed))
+    run = RunDir(plan.run_path) if plan.resume else RunDir.create(plan.run_path)
+    record = _config_record(plan, jax)
+    run.write_config(record)
+    with Checkpoints(run.checkpoints) as checkpoints:
+        done, log = 0, MetricsLog(run)
+        if plan.resume:
+            state, meta = checkpoints.restore(state)
+            done = int(meta["update"])
+            log = MetricsLog.load(run, done)  # drops rows of a chunk whose checkpoint never landed
+            log.write()
+        extra = {"run_dir": str(run.path), "seed": plan.seed, "network": plan.config.network}
+        session = Session(run, trainer, log, checkpoints, meta={"config": record}, summary_extra=extra)
+        try:
+            total = trainer.num_updates * plan.config.steps_per_update
+            with TrainingProgress(total, log.env_steps) as progress:
+                train(session, state, done, progress, on_chunk)
+        except KeyboardInterrupt:
+            return _interrupted(run, checkpoints, plan)
+        summary = session.write_summary()
+    _print_summary(summary, run)
+    return 0
+
+
+def _config_record(plan: TrainPlan, jax: Any) -> dict[str, Any]:
+    """config.json: the resolved config plus what is needed to reproduce or audit the run."""
+    from importlib.metadata import version
+
+    now = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
+    base = plan.record if plan.resume else {"env": "lorenz", "seed": plan.seed, "created_utc": now}
+    record = {**base, "ppo": plan.config.to_dict(), "jax_version": jax.__version__,
+              "jaxsimrl_version": version("jaxsimrl"), "devices": [str(device) for device in jax.devices()]}
+    if plan.resume:
+        record["resumed_utc"] = [*base.get("resumed_utc", []), now]
+    return record
+
+
+def _interrupted(run: Any, checkpoints: Any, plan: TrainPlan) -> int:
+    """Ctrl-C: everything on disk is whole (writes are atomic and Ctrl-C waits for a chunk's writes)."""
+    steps = checkpoints.steps()
+    if steps:
+        sys.stderr.write(f"jaxsimrl train-lorenz: interrupted; saved up to update {steps[-1]}. Resume with: "
+                         f"jaxsimrl train-lorenz --resume {run.path}\n")
+    else:
+        # A fresh run stopped before its first checkpoint has nothing to resume; its directory was
+        # empty or absent when it started, so everything in it is this run's.
+        shutil.rmtree(run.path, ignore_errors=True)
+        sys.stderr.write(f"jaxsimrl train-lorenz: interrupted before the first checkpoint; nothing to resume "
+                         f"(removed {run.path})\n")
+    return INTERRUPTED
+
+
+def _print_summary(summary: dict[str, Any], run: Any) -> None:
+    final = summary["final_mean_return"]
+    final_text = "n/a (no episode ended)" if not math.isfinite(final) else (
+        f"{final:,.1f} (over the {summary['final_return_episodes']} episodes ending in updates "
+        f"{summary['final_return_updates'][0]}-{summary['final_return_updates'][-1]})")
+    sys.stdout.write(
+        f"done: {summary['updates']} updates, {summary['total_steps']:,} env steps in "
+        f"{summary['wall_time_s']:.1f} s ({summary['steps_per_s']:,.0f} steps/s)\n"
+        f"  final mean episode return: {final_text}\n"
+        f"  run directory: {run.path} (config.json, metrics.jsonl/.csv, summary.json, checkpoints/)\n"
+        f"  evaluate with: jaxsimrl eval-lorenz {run.path}\n")
+
+
+def _fresh_plan(args: argparse.Namespace) -> TrainPlan:
+    from jaxsimrl.agents.ppo.config import PPOConfig
+
+    values = _read_config_file(args.config) if args.config else {}
+    values.update(_flag_overrides(args))
+    try:
+        config = PPOConfig.from_dict(values)
+    except (TypeError, ValueError) as err:
+        raise UsageError(f"invalid config: {err}") from None
+    out = Path(args.out) if args.out else Path("runs") / time.strftime("lorenz-%Y%m%d-%H%M%S", time.gmtime())
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise UsageError(f"--out {out} exists and is not an empty directory (to continue a run there use "
+                         f"--resume {out})")
+    return TrainPlan(config, 0 if args.seed is None else args.seed, out, resume=False, record={})
+
+
+def _resume_plan(args: argparse.Namespace) -> TrainPlan:
+    from jaxsimrl.agents.ppo.config import PPOConfig
+    from jaxsimrl.runs.run_dir import RunDir
+
+    changed = [flag for flag in ("config", "network", "seed", "out") if getattr(args, flag) is not None]
+    changed += [name for name in _flag_overrides(args) if name != "total_steps"]
+    if changed:
+        flag = "--" + changed[0].replace("_", "-")
+        raise UsageError(f"{flag} cannot be used with --resume: a resumed run keeps its saved config "
+                         f"(only --total-steps may be raised)")
+    try:
+        run = RunDir.existing(args.resume)
+        record = run.read_config()
+        config = PPOConfig.from_dict(record["ppo"])
+    except (TypeError, ValueError) as err:
+        raise UsageError(f"cannot resume: {err}") from None
+    if not (run.checkpoints.is_dir() and any(p.name.isdigit() for p in run.checkpoints.iterdir())):
+        raise UsageError(f"cannot resume: no checkpoint in {run.path} (it stopped before its first chunk)")
+    if args.total_steps is not None:
+        if args.total_steps < config.total_steps:
+            raise UsageError(f"--total-steps {args.total_steps} is below the run's {config.total_steps}: "
+                             f"it may only be raised when resuming")
+        config = PPOConfig.from_dict({**config.to_dict(), "total_steps": args.total_steps})
+    return TrainPlan(config, int(record.get("seed", 0)), run.path, resume=True, record=record)
+
+
+def _read_config_file(path: str) -> dict[str, Any]:
+    try:
+        text = Path(path).read_text()
+    except OSError as err:
+        raise UsageError(f"cannot read --config {path}: {err.strerror}") from None
+    try:
+        values = json.loads(text)
+    except json.JSONDecodeError as err:
+        raise UsageError(f"--config {path} is not valid JSON: {err}") from None
+    if not isinstance(values, dict):
+        raise UsageError(f"--config {path} must hold a JSON object of PPOConfig fields")
+    return values
+
+
+def _flag_overrides(args: argparse.Namespace) -> dict[str, Any]:
+    overrides = {name: getattr(args, name) for name, _, _ in KNOBS if getattr(args, name) is not None}
+    if getattr(args, "network", None) is not None:
+        overrides["network"] = args.network
+    for name in ("gamma", "gae_lambda", "ent_coef"):
+        if name in overrides and not math.isfinite(overrides[name]):
+            raise UsageError(f"--{name.replace('_', '-')} must be a finite number, got {overrides[name]}")
+    return overrides
+
+
+# ---- eval-lorenz -------------------------------------------------------------------------------------
+def run_eval(args: argparse.Namespace) -> int:
+    """Entry point of eval-lorenz."""
+    from jaxsimrl.evaluation.lorenz_eval import evaluate_run  # noqa: PLC0415 (heavy: JAX)
+
+    try:
+        report = evaluate_run(Path(args.run_dir), episodes=args.episodes, stochastic=args.stochastic,
+                              seed=args.seed)
+    except ValueError as err:
+        raise UsageError(str(err)) from None
+    _print_eval(report, Path(args.run_dir))
+    return 0
+
+
+def _print_eval(report: dict[str, Any], run_dir: Path) -> None:
+    agent, base = report, report["uncontrolled"]
+    mode = "sampled" if report["stochastic"] else "mean (deterministic)"
+    sys.stdout.write(
+        f"eval-lorenz {run_dir}: {report['episodes']} episodes of {report['episode_steps']} steps from "
+        f"random initial states, {mode} actions, seed {report['seed']}\n"
+        f"  controlled:   mean return {agent['mean_return']:10.1f} (std {agent['std_return']:.1f}, "
+        f"min {agent['min_return']:.1f}, max {agent['max_return']:.1f})   "
+        f"|velocity| > {report['v_threshold']:g}: {agent['fraction_above_threshold']:.1%} of steps\n"
+        f"  uncontrolled: mean return {base['mean_return']:10.1f} (std {base['std_return']:.1f}, "
+        f"min {base['min_return']:.1f}, max {base['max_return']:.1f})   "
+        f"|velocity| > {report['v_threshold']:g}: {base['fraction_above_threshold']:.1%} of steps\n"
+        f"  wrote {run_dir / 'eval.json'} and {run_dir / 'eval_trajectory.png'}\n")

@@ -1,0 +1,1 @@
+"""Evaluation of trained agents: rollouts against baselines, reports and figures."""
