@@ -84,6 +84,24 @@ def measure(num_envs: int, steps: int, repeats: int, seed: int, actions: str, un
     }
 
 
+def measure_gym(steps: int, repeats: int, seed: int) -> dict[str, Any]:
+    """Steps/s of the single-env gymnasium wrapper (a Python loop: one jitted call per step)."""
+    from jaxsimrl.envs.gym_lorenz import LorenzGymEnv  # only this measurement needs gymnasium
+
+    env = LorenzGymEnv()
+    env.reset(seed=seed)
+    env.step(env.action_space.sample())  # compile
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        for _ in range(steps):
+            env.step(env.action_space.sample())
+        times.append(time.perf_counter() - start)
+    median = statistics.median(times)
+    return {"steps": steps, "repeats": repeats, "times_s": times, "median_s": median,
+            "steps_per_s": steps / median}
+
+
 def machine() -> dict[str, Any]:
     device = jax.devices()[0]
     return {
@@ -119,6 +137,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--actions", choices=("uniform", "zero"), default="uniform",
                         help="uniform random actions in the box (default) or zero actions (no PRNG cost)")
     parser.add_argument("--unroll", type=positive_int, default=1, help="lax.scan unroll factor (default 1)")
+    parser.add_argument("--gym-steps", type=int, default=0,
+                        help="also time the gymnasium wrapper over this many steps per run (default 0: skip)")
     parser.add_argument("--out", help="write the results as JSON to this file")
     args = parser.parse_args(argv)
     if args.repeats < 5:
@@ -130,9 +150,12 @@ def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     rows = [measure(n, args.steps, args.repeats, args.seed, args.actions, args.unroll) for n in args.num_envs]
     print(format_table(rows))
+    gym = measure_gym(args.gym_steps, args.repeats, args.seed) if args.gym_steps > 0 else None
+    if gym:
+        print(f"gymnasium wrapper, 1 env, Python loop: {gym['steps_per_s']:.3e} steps/s (median)")
     if args.out:
         result = {"benchmark": "lorenz_env_steps", "actions": args.actions, "unroll": args.unroll,
-                  "machine": machine(), "results": rows}
+                  "machine": machine(), "results": rows, "gym_wrapper": gym}
         atomic_write_json(args.out, result)
         print(f"wrote {args.out}")
     return 0
