@@ -26,11 +26,21 @@ uninterrupted).
 
 from __future__ import annotations
 
+import shutil
+import tempfile
+import time
+from collections import deque
+from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from foam_bridge import case as foam_case
 from foam_bridge.config import FoamEnvConfig
+from foam_bridge.logparse import LogParser, field_residual
+from foam_bridge.openfoam import find_openfoam
+from foam_bridge.solver import DIVERGED, EXITED, HUNG, PAUSED, FoamSolver
 from jaxsimrl.envs.protocol import BoxSpec, Step
 
 #: Every value of ``info["outcome"]``.
@@ -45,11 +55,14 @@ class FoamCaseEnv:
     ``FoamCaseEnv(cfg, work_dir=None, env_id=0)`` validates ``cfg`` (``ValueError``), locates
     OpenFOAM (``foam_bridge.errors.OpenFOAMNotFoundError`` naming how to install it), checks a user's
     ``case_dir`` (``foam_bridge.errors.CaseError``, a ValueError) and builds the base case (mesh) once
-    under ``work_dir/env_<env_id>``. Every episode runs in a fresh copy of that base case.
+    under ``<work_dir or cfg.work_dir or a temporary dir>/env_<env_id>``. Every episode runs in a fresh
+    copy of that base case.
 
     ``reset(seed=None, options=None) -> (obs, info)``: ends any running episode (kills the solver's
     process group), samples the inlet velocity from the episode RNG (re-seeded when ``seed`` is given;
-    ``options={"inlet_velocity": v}`` fixes it), writes the case. The solver starts on the first step.
+    seeded with ``env_id`` before the first seed, so runs are reproducible; ``options={"inlet_velocity":
+    v}`` fixes it), writes the case. The observation is the initial state (iteration 0) read from 0/U.
+    The solver starts on the first step.
 
     ``step(action) -> (obs, reward, terminated, truncated, info)``; ``info`` has "iterations" (K),
     "residuals" ({field: latest initial residual}), "outcome" (one of OUTCOMES), "cause" (failure text
@@ -59,32 +72,193 @@ class FoamCaseEnv:
     ``close()`` kills the solver's whole process group and removes the case (unless keep_cases).
     """
 
-    def __init__(self, cfg: FoamEnvConfig, work_dir: Any = None, env_id: int = 0) -> None:
-        raise NotImplementedError("FoamCaseEnv is being implemented")
+    def __init__(self, cfg: FoamEnvConfig, work_dir: Path | str | None = None, env_id: int = 0) -> None:
+        self.cfg = cfg.validate()
+        self.env_id = env_id
+        self.openfoam = find_openfoam(cfg.openfoam_path)
+        parent = work_dir if work_dir is not None else cfg.work_dir
+        self._tmp = None if parent is not None else tempfile.mkdtemp(prefix="foam_bridge_")
+        self.root = Path(parent if parent is not None else self._tmp) / f"env_{env_id}"
+        self.root.mkdir(parents=True, exist_ok=True)
+        self.base = self.root / "base"
+        self.case_dir = self.root / "episode"
+        foam_case.build_base_case(cfg, self.base, self.openfoam)
+        self._rng = np.random.default_rng(env_id)
+        self._solver: FoamSolver | None = None
+        self._done = True
+        self._closed = False
 
     @property
     def observation_space_spec(self) -> BoxSpec:
-        """Box of the observation: the state (>= 0) then the log10 residual features."""
-        raise NotImplementedError
+        """Box of the observation: the scaled state (>= 0) then the log10 residual features."""
+        n = self.cfg.observation_size
+        low = np.array([0.0] + [-np.inf] * (n - 1), dtype=np.float32)
+        return BoxSpec(low=low, high=np.full(n, np.inf, dtype=np.float32), shape=(n,))
 
     @property
     def action_space_spec(self) -> BoxSpec:
         """Box of (alpha_u, alpha_p): ``[action_low, action_high]``."""
-        raise NotImplementedError
+        return BoxSpec(low=np.asarray(self.cfg.action_low, dtype=np.float32),
+                       high=np.asarray(self.cfg.action_high, dtype=np.float32), shape=(2,))
 
     def reset(
         self, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
         """Start a new episode; returns the initial observation (iteration 0) and info."""
-        raise NotImplementedError
+        self._stop_solver()
+        if seed is not None:
+            self._rng = np.random.default_rng(seed)
+        options = options or {}
+        if options.get("inlet_velocity") is not None:
+            velocity = float(options["inlet_velocity"])
+        else:
+            velocity = float(self._rng.uniform(*self.cfg.velocity_range))
+        foam_case.write_episode_case(self.base, self.case_dir, self.cfg, velocity)
+        self._relaxation = foam_case.case_relaxation(self.case_dir)
+        self._parser = LogParser(foam_case.CELLS_FUNCTION, foam_case.INLET_FUNCTION,
+                                 self.cfg.divergence_threshold)
+        self._iterations = 0
+        self._features: deque[np.ndarray] = deque(
+            [np.zeros(len(self.cfg.convergence))] * self.cfg.residual_features,
+            maxlen=self.cfg.residual_features or None)
+        self._episode = {"env_id": self.env_id, "seed": seed, "inlet_velocity": velocity, "actions": [],
+                         "return": 0.0, "steps": 0, "started": time.monotonic()}
+        self._done = False
+        inlet, cells = foam_case.initial_state(self.case_dir, self.cfg)
+        self._obs = self._observation(inlet, cells)
+        return self._obs.copy(), self._info("running", "", {})
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         """Run ``interval`` SIMPLE iterations with the given factors; see the class docstring."""
-        raise NotImplementedError
+        if self._done:
+            raise RuntimeError("step() on a finished episode: call reset() first")
+        alpha = np.clip(np.asarray(action, dtype=float).reshape(2), self.cfg.action_low, self.cfg.action_high)
+        self._episode["actions"].append([float(alpha[0]), float(alpha[1])])
+        text = foam_case.relaxation_text(self._relaxation, self.cfg, alpha[0], alpha[1])
+        outcome, cause = self._classify(self._advance(text))
+        previous, self._iterations = self._iterations, self._iteration_count(outcome)
+        if outcome in FAILURES:
+            penalty = self.cfg.failure_penalty
+            reward = float(-(self.cfg.max_iterations - previous) if penalty is None else penalty)
+        else:
+            reward = float(-(self._iterations - previous))
+        if outcome != "running":
+            self._stop_solver()
+        residuals = self._residuals()
+        self._update_observation(outcome, residuals)
+        self._episode["return"] += reward
+        self._episode["steps"] += 1
+        info = self._info(outcome, cause, residuals)
+        if outcome != "running":
+            self._done = True
+            info["episode"] = self._episode_record(outcome, cause, residuals)
+        terminated = outcome == "converged" or outcome in FAILURES
+        return self._obs.copy(), reward, terminated, outcome == "truncated", info
 
     def close(self) -> None:
         """Kill the solver's process group (no orphans) and remove the case directories."""
-        raise NotImplementedError
+        self._stop_solver()
+        self._done = True
+        if not self.cfg.keep_cases and not self._closed:
+            shutil.rmtree(self.root, ignore_errors=True)
+            if self._tmp is not None:
+                shutil.rmtree(self._tmp, ignore_errors=True)
+        self._closed = True
+
+    @property
+    def solver_pgid(self) -> int | None:
+        """Process-group id of the running solver (None between episodes); for tests and monitoring."""
+        return None if self._solver is None else self._solver.pgid
+
+    def _advance(self, text: bytes) -> str:
+        """Feed the factors and run to the next pause; returns the solver event."""
+        deadline = time.monotonic() + self.cfg.step_timeout_s
+        if self._solver is None:
+            fifo = self.case_dir / "system" / foam_case.RELAXATION_FIFO
+            self._solver = FoamSolver(self.case_dir, self.openfoam, self._parser, fifo)
+            self._solver.start()
+            event = self._solver.wait(self.cfg.step_timeout_s)  # start-up: the first fvSolution read
+            if event != PAUSED:
+                return event
+        target = self._iterations + self.cfg.interval
+        while True:
+            self._solver.release(text)
+            event = self._solver.wait(max(deadline - time.monotonic(), 0.0))
+            # any re-read before the boundary (none is scheduled) gets the same factors
+            if event != PAUSED or self._parser.completed >= target:
+                return event
+
+    def _classify(self, event: str) -> tuple[str, str]:
+        """(outcome, cause) of a solver event."""
+        parser, cfg = self._parser, self.cfg
+        if event == PAUSED:
+            return "running", ""
+        if event == DIVERGED:
+            return "diverged", f"diverged: {parser.diverged}"
+        if event == HUNG:
+            return "hung", (f"watchdog: no progress within step_timeout_s={cfg.step_timeout_s} s "
+                            f"(last iteration started: {parser.iteration})")
+        assert event == EXITED and self._solver is not None
+        code = self._solver.returncode
+        if parser.converged_at is not None:
+            return "converged", ""
+        if code == 0 and parser.completed >= cfg.max_iterations:
+            return "truncated", ""
+        detail = parser.error or "no error message"
+        return "crashed", f"simpleFoam exited with code {code} at iteration {parser.iteration}: {detail}"
+
+    def _iteration_count(self, outcome: str) -> int:
+        if outcome == "converged":
+            return int(self._parser.converged_at or self._parser.completed)
+        if outcome in FAILURES:
+            return max(self._parser.iteration, self._iterations)
+        return self._parser.completed
+
+    def _residuals(self) -> dict[str, float]:
+        found = {name: field_residual(self._parser.residuals, name) for name in self.cfg.convergence}
+        return {name: float(value) for name, value in found.items() if value is not None}
+
+    def _update_observation(self, outcome: str, residuals: dict[str, float]) -> None:
+        if self.cfg.residual_features:
+            logs = [np.log10(max(residuals.get(name, 1.0), 1e-30)) if np.isfinite(residuals.get(name, 1.0))
+                    else 0.0 for name in self.cfg.convergence]
+            self._features.append(np.asarray(logs))
+        parser = self._parser
+        if outcome not in FAILURES and parser.inlet_state is not None and parser.cells_state is not None:
+            self._obs = self._observation(parser.inlet_state, parser.cells_state)
+        elif self.cfg.residual_features:
+            self._obs = self._observation_from_state(float(self._obs[0]))
+
+    def _observation(self, inlet: float, cells: float) -> np.ndarray:
+        return self._observation_from_state((inlet + cells) / self.cfg.state_scale)
+
+    def _observation_from_state(self, state: float) -> np.ndarray:
+        parts = [np.array([state]), *self._features] if self.cfg.residual_features else [np.array([state])]
+        return np.concatenate(parts).astype(np.float32)
+
+    def _info(self, outcome: str, cause: str, residuals: dict[str, float]) -> dict[str, Any]:
+        return {"iterations": self._iterations, "residuals": residuals, "outcome": outcome,
+                "cause": cause, "inlet_velocity": self._episode["inlet_velocity"]}
+
+    def _episode_record(self, outcome: str, cause: str, residuals: dict[str, float]) -> dict[str, Any]:
+        record = {key: value for key, value in self._episode.items() if key != "started"}
+        record.update(outcome=outcome, cause=cause, iterations=self._iterations, residuals=residuals,
+                      wall_time_s=time.monotonic() - self._episode["started"])
+        return record
+
+    def _stop_solver(self) -> None:
+        if self._solver is not None:
+            self._solver.kill()
+            self._solver = None
+
+
+@dataclass
+class FoamEnvState:
+    """Host-side state handle of the protocol form: the case env and where its episode stands."""
+
+    env: FoamCaseEnv
+    iterations: int = 0
+    done: bool = False
 
 
 class FoamEnv:
@@ -96,23 +270,46 @@ class FoamEnv:
     FoamCaseEnv is created on the first reset and recreated when ``params`` change.
     """
 
-    def __init__(self, work_dir: Any = None, env_id: int = 0) -> None:
-        raise NotImplementedError
+    def __init__(self, work_dir: Path | str | None = None, env_id: int = 0) -> None:
+        self.work_dir = work_dir
+        self.env_id = env_id
+        self._env: FoamCaseEnv | None = None
+        self._params: FoamEnvConfig | None = None
 
     def default_params(self) -> FoamEnvConfig:
         return FoamEnvConfig()
 
-    def reset(self, key: Any, params: FoamEnvConfig) -> tuple[np.ndarray, Any]:
-        raise NotImplementedError
+    def reset(self, key: Any, params: FoamEnvConfig) -> tuple[np.ndarray, FoamEnvState]:
+        if self._env is None or params != self._params:
+            self.close()
+            self._env = FoamCaseEnv(params, self.work_dir, self.env_id)
+            self._params = params
+        obs, _ = self._env.reset(seed=seed_from_key(key))
+        return obs, FoamEnvState(self._env)
 
-    def step(self, key: Any, state: Any, action: Any, params: FoamEnvConfig) -> Step:
-        raise NotImplementedError
+    def step(self, key: Any, state: FoamEnvState, action: Any, params: FoamEnvConfig) -> Step:
+        obs, reward, terminated, truncated, info = state.env.step(action)
+        new_state = FoamEnvState(state.env, info["iterations"], terminated or truncated)
+        return Step(obs, new_state, np.float32(reward), terminated, truncated, info)
 
     def observation_space(self, params: FoamEnvConfig) -> BoxSpec:
-        raise NotImplementedError
+        n = params.observation_size
+        return BoxSpec(low=np.array([0.0] + [-np.inf] * (n - 1), dtype=np.float32),
+                       high=np.full(n, np.inf, dtype=np.float32), shape=(n,))
 
     def action_space(self, params: FoamEnvConfig) -> BoxSpec:
-        raise NotImplementedError
+        return BoxSpec(low=np.asarray(params.action_low, dtype=np.float32),
+                       high=np.asarray(params.action_high, dtype=np.float32), shape=(2,))
 
     def close(self) -> None:
-        raise NotImplementedError
+        if self._env is not None:
+            self._env.close()
+            self._env = None
+
+
+def seed_from_key(key: Any) -> int:
+    """A numpy seed from an int or an integer array (a raw JAX PRNG key, for instance)."""
+    if isinstance(key, int | np.integer):
+        return int(key)
+    words = np.asarray(key).astype(np.uint64).ravel().tolist()
+    return int(np.random.SeedSequence(words).generate_state(1)[0])

@@ -1,0 +1,132 @@
+"""Incremental parsing of simpleFoam's output: iterations, initial residuals, the state, the outcome.
+
+The parser is fed raw chunks of the solver's stdout+stderr as they arrive (partial lines are kept
+until their newline), so parsing costs O(new output) per step, never a re-read of the whole log.
+
+What it recognises (OpenFOAM v1912 wording):
+
+- ``Time = 123``: iteration 123 starts.
+- ``<solver>:  Solving for Ux, Initial residual = 0.01, Final residual = ..., No Iterations 2``: the
+  first solve of a field in an iteration gives its initial residual (as simpleFoam's residualControl
+  judges it).
+- ``ExecutionTime = ...``: the iteration is complete.
+- ``volFieldValue <cells> write:`` / ``surfaceFieldValue <inlet> write:`` followed by
+  ``    average(...) of <field> = 1953.64``: the two terms of the paper's state.
+- ``SIMPLE solution converged in 418 iterations``: simpleFoam's own residualControl was met.
+- ``Floating point exception``, ``FOAM FATAL ERROR``, ``Segmentation fault``...: the cause of a crash.
+- NaN/Inf or an initial residual above ``divergence_threshold``: divergence.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+
+_TIME = re.compile(r"^Time = (\S+)\s*$")
+_SOLVE = re.compile(r"Solving for (\w+), Initial residual = (\S+), Final residual = (\S+),")
+_EXECUTION = re.compile(r"^ExecutionTime = ")
+_FUNCTION_HEADER = re.compile(r"^(?:volFieldValue|surfaceFieldValue) (\S+) write:")
+_FUNCTION_VALUE = re.compile(r"^\s+\w+\(.*\) of \S+ = (\S+)\s*$")
+_CONVERGED = re.compile(r"solution converged in (\S+) iterations")
+_ERRORS = ("Floating point exception", "FOAM FATAL", "Segmentation fault", "Killed", "Aborted",
+           "bad_alloc", "sigFpe", "sigSegv")
+VECTOR_COMPONENTS = ("x", "y", "z")
+
+
+def field_residual(residuals: dict[str, float], name: str) -> float | None:
+    """Initial residual of a field: its own entry, or the largest of its vector components."""
+    if name in residuals:
+        return residuals[name]
+    parts = [residuals[name + c] for c in VECTOR_COMPONENTS if name + c in residuals]
+    if not parts:
+        return None
+    return max(parts, key=lambda v: v if math.isfinite(v) else math.inf)
+
+
+def _to_float(text: str) -> float:
+    try:
+        return float(text.rstrip(","))
+    except ValueError:
+        return math.nan
+
+
+@dataclass
+class LogParser:
+    """Feed it the solver's output chunk by chunk; read the latest facts from its attributes.
+
+    Attributes: ``iteration`` (last ``Time =`` seen), ``completed`` (last finished iteration),
+    ``residuals`` (raw initial residuals of the last finished iteration, e.g. {"Ux": .., "p": ..}),
+    ``history`` (one residual dict per finished iteration, in order), ``cells_state`` /
+    ``inlet_state`` / ``state_iteration`` (latest state terms and the iteration they belong to),
+    ``converged_at``, ``error`` (first crash line), ``diverged`` (cause text).
+    """
+
+    cells_function: str
+    inlet_function: str
+    divergence_threshold: float = 1e3
+    iteration: int = 0
+    completed: int = 0
+    residuals: dict[str, float] = field(default_factory=dict)
+    history: list[dict[str, float]] = field(default_factory=list)
+    cells_state: float | None = None
+    inlet_state: float | None = None
+    state_iteration: int = 0
+    converged_at: int | None = None
+    error: str | None = None
+    diverged: str | None = None
+    _current: dict[str, float] = field(default_factory=dict)
+    _pending_function: str | None = None
+    _partial: str = ""
+
+    def feed(self, chunk: bytes | str) -> None:
+        """Parse a chunk of output; an unfinished last line waits for the next chunk."""
+        text = chunk.decode(errors="replace") if isinstance(chunk, bytes) else chunk
+        lines = (self._partial + text).split("\n")
+        self._partial = lines.pop()
+        for line in lines:
+            self._line(line)
+
+    def finish(self) -> None:
+        """Parse the unfinished last line (call when the stream has ended)."""
+        if self._partial:
+            self._line(self._partial)
+            self._partial = ""
+
+    def _line(self, line: str) -> None:
+        if match := _TIME.match(line):
+            self.iteration = int(round(_to_float(match.group(1))))
+            self._current = {}
+        elif match := _SOLVE.search(line):
+            self._residual(match.group(1), _to_float(match.group(2)))
+        elif _EXECUTION.match(line):
+            self.completed = self.iteration
+            self.residuals = self._current
+            self.history.append(self._current)
+        elif match := _FUNCTION_HEADER.match(line):
+            self._pending_function = match.group(1)
+        elif self._pending_function and (match := _FUNCTION_VALUE.match(line)):
+            self._state_term(self._pending_function, _to_float(match.group(1)))
+            self._pending_function = None
+        elif match := _CONVERGED.search(line):
+            self.converged_at = int(round(_to_float(match.group(1))))
+        elif self.error is None and any(marker in line for marker in _ERRORS):
+            self.error = line.strip()
+
+    def _residual(self, name: str, value: float) -> None:
+        if name in self._current:
+            return  # only the first solve of a field per iteration counts (as residualControl)
+        self._current[name] = value
+        if self.diverged is None and not (math.isfinite(value) and value <= self.divergence_threshold):
+            self.diverged = f"initial residual of {name} = {value} at iteration {self.iteration}"
+
+    def _state_term(self, function: str, value: float) -> None:
+        if function == self.cells_function:
+            self.cells_state = value
+        elif function == self.inlet_function:
+            self.inlet_state = value
+        else:
+            return
+        self.state_iteration = self.iteration
+        if self.diverged is None and not math.isfinite(value):
+            self.diverged = f"state term {function} = {value} at iteration {self.iteration}"

@@ -1,0 +1,141 @@
+"""The persistent, pausable simpleFoam process of one episode (+ watchdog, process-group kill).
+
+simpleFoam pauses itself: whenever it (re-)reads ``system/fvSolution`` it opens the FIFO
+``system/foamBridgeRelaxation`` (#included by fvSolution) and blocks until the bridge writes the
+relaxation factors into it and closes it (see foam_bridge.case for what makes it re-read exactly after
+every ``interval`` iterations). The bridge notices the pause without any race: opening a FIFO for
+writing with O_NONBLOCK succeeds only while a reader has it open, i.e. while the solver is waiting.
+
+While the solver runs, its stdout+stderr is read as it arrives, fed to a LogParser and appended to
+``log.simpleFoam`` in the case. A step has a wall-clock deadline (the watchdog): a solver that neither
+prints nor waits on the FIFO past it is reported as hung. The solver is started in its own session
+(process group); ``kill()`` SIGKILLs the whole group and reaps it, so nothing outlives an episode.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import os
+import select
+import signal
+import subprocess
+import time
+from pathlib import Path
+
+from foam_bridge.logparse import LogParser
+from foam_bridge.openfoam import OpenFOAM
+
+#: How long the output must be quiet before the bridge checks whether the solver waits on the FIFO.
+QUIET_POLL_S = 0.002
+PAUSED, EXITED, HUNG, DIVERGED = "paused", "exited", "hung", "diverged"
+
+
+class FoamSolver:
+    """One simpleFoam run in ``case``; ``start()``, then alternate ``wait()`` and ``release()``."""
+
+    def __init__(self, case: Path, openfoam: OpenFOAM, parser: LogParser, fifo: Path) -> None:
+        self.case = case
+        self.openfoam = openfoam
+        self.parser = parser
+        self.fifo = fifo
+        self.process: subprocess.Popen[bytes] | None = None
+        self.pgid: int | None = None
+        self._writer: int | None = None
+        self._log = None
+
+    @property
+    def returncode(self) -> int | None:
+        """The solver's exit status (negative: killed by that signal); None while it runs."""
+        return None if self.process is None else self.process.poll()
+
+    def start(self) -> None:
+        """Launch simpleFoam in a new session; it soon waits on the FIFO for the first factors."""
+        self._log = open(self.case / "log.simpleFoam", "ab")  # noqa: SIM115 (closed in kill)
+        self.process = subprocess.Popen(
+            [self.openfoam.executable("simpleFoam"), "-case", str(self.case)], cwd=self.case,
+            env=self.openfoam.environment(self.case), stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT, start_new_session=True,
+        )
+        self.pgid = self.process.pid
+        assert self.process.stdout is not None
+        os.set_blocking(self.process.stdout.fileno(), False)
+
+    def wait(self, timeout_s: float) -> str:
+        """Run until the solver pauses (PAUSED), exits (EXITED), diverges or passes the deadline."""
+        assert self.process is not None and self.process.stdout is not None
+        out = self.process.stdout.fileno()
+        deadline = time.monotonic() + timeout_s
+        while True:
+            if self.parser.diverged:
+                return DIVERGED
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                return HUNG
+            readable, _, _ = select.select([out], [], [], min(QUIET_POLL_S, remaining))
+            if readable:
+                if not self._pump(out):
+                    self.process.wait()
+                    self.parser.finish()
+                    return EXITED
+                continue
+            self._writer = self._open_fifo_writer()
+            if self._writer is not None:
+                self._drain(out)
+                return DIVERGED if self.parser.diverged else PAUSED
+
+    def release(self, text: bytes) -> None:
+        """Hand the waiting solver its relaxation factors; it resumes once the FIFO is closed."""
+        if self._writer is None:
+            raise RuntimeError("the solver is not paused")
+        try:
+            os.set_blocking(self._writer, True)
+            os.write(self._writer, text)
+        except BrokenPipeError:
+            pass  # the solver died meanwhile; the next wait() reports its exit
+        finally:
+            os.close(self._writer)
+            self._writer = None
+
+    def kill(self) -> None:
+        """SIGKILL the solver's whole process group, reap it and close every descriptor."""
+        if self.process is not None and self.pgid is not None:
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(self.pgid, signal.SIGKILL)
+            self.process.wait()
+            if self.process.stdout is not None:
+                self.process.stdout.close()
+        if self._writer is not None:
+            os.close(self._writer)
+            self._writer = None
+        if self._log is not None:
+            self._log.close()
+            self._log = None
+
+    def _pump(self, out: int) -> bool:
+        """Read what is available (maybe nothing); False at end of stream."""
+        try:
+            data = os.read(out, 1 << 16)
+        except BlockingIOError:
+            return True
+        if not data:
+            return False
+        self.parser.feed(data)
+        assert self._log is not None
+        self._log.write(data)
+        return True
+
+    def _drain(self, out: int) -> None:
+        """Everything the paused solver printed is already in the pipe: read all of it."""
+        while True:
+            readable, _, _ = select.select([out], [], [], 0)
+            if not readable or not self._pump(out):
+                return
+
+    def _open_fifo_writer(self) -> int | None:
+        try:
+            return os.open(self.fifo, os.O_WRONLY | os.O_NONBLOCK)
+        except OSError as error:
+            if error.errno in (errno.ENXIO, errno.ENOENT):
+                return None
+            raise
