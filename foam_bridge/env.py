@@ -27,6 +27,7 @@ uninterrupted).
 from __future__ import annotations
 
 import shutil
+import signal
 import tempfile
 import time
 from collections import deque
@@ -205,6 +206,10 @@ class FoamCaseEnv:
         if code == 0 and parser.completed >= cfg.max_iterations:
             return "truncated", ""
         detail = parser.error or "no error message"
+        if code is not None and code < 0:
+            detail = f"killed by {signal.Signals(-code).name}; {detail}"
+        elif code == 0:
+            detail = "it ended without converging before max_iterations"
         return "crashed", f"simpleFoam exited with code {code} at iteration {parser.iteration}: {detail}"
 
     def _iteration_count(self, outcome: str) -> int:

@@ -13,8 +13,9 @@ What it recognises (OpenFOAM v1912 wording):
 - ``volFieldValue <cells> write:`` / ``surfaceFieldValue <inlet> write:`` followed by
   ``    average(...) of <field> = 1953.64``: the two terms of the paper's state.
 - ``SIMPLE solution converged in 418 iterations``: simpleFoam's own residualControl was met.
-- ``Floating point exception``, ``FOAM FATAL ERROR``, ``Segmentation fault``...: the cause of a crash.
-- NaN/Inf or an initial residual above ``divergence_threshold``: divergence.
+- ``--> FOAM FATAL (IO) ERROR`` (+ its message line), the sigFpe/sigSegv stack traces: crash causes.
+- NaN/Inf or an initial residual above ``divergence_threshold``, or a state term that is not finite or
+  above STATE_LIMIT: divergence.
 """
 
 from __future__ import annotations
@@ -29,8 +30,12 @@ _EXECUTION = re.compile(r"^ExecutionTime = ")
 _FUNCTION_HEADER = re.compile(r"^(?:volFieldValue|surfaceFieldValue) (\S+) write:")
 _FUNCTION_VALUE = re.compile(r"^\s+\w+\(.*\) of \S+ = (\S+)\s*$")
 _CONVERGED = re.compile(r"solution converged in (\S+) iterations")
-_ERRORS = ("Floating point exception", "FOAM FATAL", "Segmentation fault", "Killed", "Aborted",
-           "bad_alloc", "sigFpe", "sigSegv")
+#: Crash markers -> the cause recorded (a FOAM FATAL error also records its next message line).
+_ERRORS = {"sigFpe::sigHandler": "floating point exception (SIGFPE)",
+           "sigSegv::sigHandler": "segmentation fault (SIGSEGV)",
+           "FOAM FATAL": "FOAM FATAL ERROR", "std::bad_alloc": "out of memory (std::bad_alloc)"}
+#: A state term above this (|U|^2 in m^2/s^2) means the solution has blown up.
+STATE_LIMIT = 1e30
 VECTOR_COMPONENTS = ("x", "y", "z")
 
 
@@ -77,6 +82,7 @@ class LogParser:
     diverged: str | None = None
     _current: dict[str, float] = field(default_factory=dict)
     _pending_function: str | None = None
+    _pending_error: bool = False
     _partial: str = ""
 
     def feed(self, chunk: bytes | str) -> None:
@@ -94,6 +100,9 @@ class LogParser:
             self._partial = ""
 
     def _line(self, line: str) -> None:
+        if self._pending_error and line.strip():
+            self.error = f"{self.error}: {line.strip()}"
+            self._pending_error = False
         if match := _TIME.match(line):
             self.iteration = int(round(_to_float(match.group(1))))
             self._current = {}
@@ -110,8 +119,15 @@ class LogParser:
             self._pending_function = None
         elif match := _CONVERGED.search(line):
             self.converged_at = int(round(_to_float(match.group(1))))
-        elif self.error is None and any(marker in line for marker in _ERRORS):
-            self.error = line.strip()
+        elif self.error is None:
+            self._error(line)
+
+    def _error(self, line: str) -> None:
+        for marker, cause in _ERRORS.items():
+            if marker in line:
+                self.error = cause
+                self._pending_error = marker == "FOAM FATAL"
+                return
 
     def _residual(self, name: str, value: float) -> None:
         if name in self._current:
@@ -128,5 +144,5 @@ class LogParser:
         else:
             return
         self.state_iteration = self.iteration
-        if self.diverged is None and not math.isfinite(value):
+        if self.diverged is None and not (math.isfinite(value) and abs(value) <= STATE_LIMIT):
             self.diverged = f"state term {function} = {value} at iteration {self.iteration}"
