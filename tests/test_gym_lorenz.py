@@ -158,6 +158,8 @@ def test_constructor_kwargs_map_onto_params():
 @pytest.mark.parametrize(("kwargs", "message"), [
     ({"rhoo": 20.0}, "rhoo"),
     ({"obs_scale": [1.0, 2.0]}, "obs_scale"),
+    ({"init_state": ["a", "b", "c"]}, "init_state"),
+    ({"max_steps": float("nan")}, "max_steps"),
     ({"episode_steps": 0}, "episode_steps"),
     ({"dt": "fast"}, "dt"),
     ({"random_init": "yes"}, "random_init"),

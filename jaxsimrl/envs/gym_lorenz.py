@@ -30,7 +30,7 @@ from jaxsimrl.envs.lorenz import Lorenz, LorenzParams, LorenzState
 
 _ARRAY_FIELDS = {"init_state": (3,), "obs_scale": (6,)}
 _INT_FIELDS = ("terminal_window", "episode_steps", "max_steps")
-_PARAM_FIELDS = {f.name: f for f in dataclasses.fields(LorenzParams)}
+_PARAM_FIELDS = tuple(f.name for f in dataclasses.fields(LorenzParams))
 _OBS, _XYZ, _SCALARS = slice(0, 6), slice(6, 9), slice(9, 14)  # layout of _step_and_split's vector
 _LORENZ = Lorenz()  # stateless: one instance lets every wrapper share the jit caches
 
@@ -64,18 +64,21 @@ def _convert(name: str, value: Any) -> Any:
         return bool(value)
     if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
         raise ValueError(f"Lorenz parameter {name} must be a number, got {value!r}")
+    if not np.isfinite(value):
+        raise ValueError(f"Lorenz parameter {name} must be finite, got {value!r}")
     if name in _INT_FIELDS:
         if int(value) != value or value < 1:
             raise ValueError(f"Lorenz parameter {name} must be a positive integer, got {value!r}")
         return int(value)
-    if not np.isfinite(value):
-        raise ValueError(f"Lorenz parameter {name} must be finite, got {value!r}")
     return float(value)
 
 
 def _as_vector(name: str, value: Any, shape: tuple[int, ...]) -> jax.Array:
-    array = np.asarray(value, dtype=np.float32)
-    if array.shape != shape or not np.all(np.isfinite(array)):
+    try:
+        array = np.asarray(value, dtype=np.float32)
+    except (TypeError, ValueError):
+        array = None
+    if array is None or array.shape != shape or not np.all(np.isfinite(array)):
         raise ValueError(f"{name} must be {shape[0]} finite numbers, got {value!r}")
     return jnp.asarray(array)
 
