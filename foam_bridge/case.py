@@ -159,6 +159,18 @@ def write_episode_case(base: Path, dest: Path, cfg: FoamEnvConfig, inlet_velocit
     os.mkfifo(dest / "system" / RELAXATION_FIFO)
 
 
+def make_uninterrupted(case: Path, relaxation: bytes) -> None:
+    """Turn an episode case into a plain one: constant factors in a regular file, no pause.
+
+    The reference run for "chunked == uninterrupted" and for the overhead benchmark.
+    """
+    fifo = case / "system" / RELAXATION_FIFO
+    fifo.unlink()
+    fifo.write_bytes(relaxation)
+    with FoamFile(case / "system" / "controlDict") as control:
+        del control["functions"][PAUSE_FUNCTION]
+
+
 def relaxation_text(base: Mapping[str, Any], cfg: FoamEnvConfig, alpha_u: float, alpha_p: float) -> bytes:
     """The relaxationFactors entry the bridge feeds through the FIFO for one action.
 

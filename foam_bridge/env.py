@@ -167,6 +167,11 @@ class FoamCaseEnv:
         self._closed = True
 
     @property
+    def parser(self) -> LogParser:
+        """The log parser of the current (or last) episode: residual history, state, counters."""
+        return self._parser
+
+    @property
     def solver_pgid(self) -> int | None:
         """Process-group id of the running solver (None between episodes); for tests and monitoring."""
         return None if self._solver is None else self._solver.pgid

@@ -13,6 +13,8 @@ What it recognises (OpenFOAM v1912 wording):
 - ``volFieldValue <cells> write:`` / ``surfaceFieldValue <inlet> write:`` followed by
   ``    average(...) of <field> = 1953.64``: the two terms of the paper's state.
 - ``SIMPLE solution converged in 418 iterations``: simpleFoam's own residualControl was met.
+- ``Re-reading object fvSolution from file ...``: printed (and flushed) before every re-read of
+  fvSolution, i.e. before the solver opens the relaxation FIFO again; counted in ``fvsolution_rereads``.
 - ``--> FOAM FATAL (IO) ERROR`` (+ its message line), the sigFpe/sigSegv stack traces: crash causes.
 - NaN/Inf or an initial residual above ``divergence_threshold``, or a state term that is not finite or
   above STATE_LIMIT: divergence.
@@ -30,6 +32,7 @@ _EXECUTION = re.compile(r"^ExecutionTime = ")
 _FUNCTION_HEADER = re.compile(r"^(?:volFieldValue|surfaceFieldValue) (\S+) write:")
 _FUNCTION_VALUE = re.compile(r"^\s+\w+\(.*\) of \S+ = (\S+)\s*$")
 _CONVERGED = re.compile(r"solution converged in (\S+) iterations")
+_REREAD = re.compile(r"Re-reading object fvSolution\b")
 #: Crash markers -> the cause recorded (a FOAM FATAL error also records its next message line).
 _ERRORS = {"sigFpe::sigHandler": "floating point exception (SIGFPE)",
            "sigSegv::sigHandler": "segmentation fault (SIGSEGV)",
@@ -64,7 +67,7 @@ class LogParser:
     ``residuals`` (raw initial residuals of the last finished iteration, e.g. {"Ux": .., "p": ..}),
     ``history`` (one residual dict per finished iteration, in order), ``cells_state`` /
     ``inlet_state`` / ``state_iteration`` (latest state terms and the iteration they belong to),
-    ``converged_at``, ``error`` (first crash line), ``diverged`` (cause text).
+    ``converged_at``, ``fvsolution_rereads``, ``error`` (first crash line), ``diverged`` (cause text).
     """
 
     cells_function: str
@@ -78,6 +81,7 @@ class LogParser:
     inlet_state: float | None = None
     state_iteration: int = 0
     converged_at: int | None = None
+    fvsolution_rereads: int = 0
     error: str | None = None
     diverged: str | None = None
     _current: dict[str, float] = field(default_factory=dict)
@@ -117,6 +121,8 @@ class LogParser:
         elif self._pending_function and (match := _FUNCTION_VALUE.match(line)):
             self._state_term(self._pending_function, _to_float(match.group(1)))
             self._pending_function = None
+        elif _REREAD.search(line):
+            self.fvsolution_rereads += 1
         elif match := _CONVERGED.search(line):
             self.converged_at = int(round(_to_float(match.group(1))))
         elif self.error is None:

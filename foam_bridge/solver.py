@@ -4,7 +4,10 @@ simpleFoam pauses itself: whenever it (re-)reads ``system/fvSolution`` it opens 
 ``system/foamBridgeRelaxation`` (#included by fvSolution) and blocks until the bridge writes the
 relaxation factors into it and closes it (see foam_bridge.case for what makes it re-read exactly after
 every ``interval`` iterations). The bridge notices the pause without any race: opening a FIFO for
-writing with O_NONBLOCK succeeds only while a reader has it open, i.e. while the solver is waiting.
+writing with O_NONBLOCK succeeds only while a reader has it open. The reader of a read already served
+may linger (a SIGSTOPped solver never closes it), so a reader counts as a new pause only if it is the
+first one or the solver printed a new "Re-reading object fvSolution" line (flushed before it opens the
+FIFO again) since the last pause; otherwise the bridge closes its end again without writing.
 
 While the solver runs, its stdout+stderr is read as it arrives, fed to a LogParser and appended to
 ``log.simpleFoam`` in the case. A step has a wall-clock deadline (the watchdog): a solver that neither
@@ -42,6 +45,7 @@ class FoamSolver:
         self.process: subprocess.Popen[bytes] | None = None
         self.pgid: int | None = None
         self._writer: int | None = None
+        self._served_rereads = -1  # fvSolution re-reads seen at the last pause; -1: none yet
         self._log = None
 
     @property
@@ -79,10 +83,14 @@ class FoamSolver:
                     self.parser.finish()
                     return EXITED
                 continue
-            self._writer = self._open_fifo_writer()
-            if self._writer is not None:
-                self._drain(out)
+            writer = self._open_fifo_writer()
+            if writer is None:
+                continue
+            self._drain(out)
+            if self.parser.fvsolution_rereads > self._served_rereads:
+                self._writer, self._served_rereads = writer, self.parser.fvsolution_rereads
                 return DIVERGED if self.parser.diverged else PAUSED
+            os.close(writer)  # the reader of the read already served: not a new pause
 
     def release(self, text: bytes) -> None:
         """Hand the waiting solver its relaxation factors; it resumes once the FIFO is closed."""
@@ -139,3 +147,22 @@ class FoamSolver:
             if error.errno in (errno.ENXIO, errno.ENOENT):
                 return None
             raise
+
+
+def run_to_end(case: Path, openfoam: OpenFOAM, parser: LogParser, timeout_s: float) -> tuple[int, float]:
+    """Run simpleFoam on ``case`` once, start to end, without pauses (the reference for chunked runs).
+
+    The case must not pause (see foam_bridge.case.make_uninterrupted). The output goes to
+    ``log.simpleFoam`` and is parsed once the run has ended. Returns (exit code, wall seconds).
+    """
+    log = case / "log.simpleFoam"
+    start = time.monotonic()
+    with open(log, "wb") as out:
+        result = subprocess.run([openfoam.executable("simpleFoam"), "-case", str(case)], cwd=case,
+                                env=openfoam.environment(case), stdin=subprocess.DEVNULL, stdout=out,
+                                stderr=subprocess.STDOUT, start_new_session=True, timeout=timeout_s,
+                                check=False)
+    wall = time.monotonic() - start
+    parser.feed(log.read_bytes())
+    parser.finish()
+    return result.returncode, wall

@@ -1,0 +1,273 @@
+"""FoamCaseEnv against the real simpleFoam on coarse backward-facing-step meshes (a few seconds each).
+
+mesh_scale 0.4 (2,110 cells) with SIMPLEC and factors (0.95, 0.95) converges in ~180 iterations at the
+paper's training criterion and ~215 at its test criterion; mesh_scale 0.25 diverges with them.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from foamlib import FoamFile
+
+from foam_bridge import case as foam_case
+from foam_bridge.config import TEST_CONVERGENCE, U_REF, FoamEnvConfig
+from foam_bridge.env import FoamCaseEnv, FoamEnv
+from foam_bridge.errors import CaseError
+from foam_bridge.logparse import LogParser
+from foam_bridge.solver import run_to_end
+
+needs_openfoam = pytest.mark.skipif(shutil.which("simpleFoam") is None, reason="simpleFoam not on PATH")
+pytestmark = [pytest.mark.openfoam, needs_openfoam]
+
+BEST = (0.95, 0.95)
+
+
+def _cfg(tmp_path: Path, **overrides) -> FoamEnvConfig:
+    base = dict(mesh_scale=0.4, simple_variant="SIMPLEC", interval=25, max_iterations=1000,
+                step_timeout_s=60.0, work_dir=tmp_path)
+    return FoamEnvConfig(**{**base, **overrides})
+
+
+def _run_episode(env: FoamCaseEnv, actions) -> tuple[list[float], dict]:
+    """Step until the episode ends; ``actions`` is one action or a list (the last one repeats)."""
+    schedule = list(actions) if isinstance(actions, list) else [actions]
+    rewards, t = [], 0
+    while True:
+        _, reward, terminated, truncated, info = env.step(schedule[min(t, len(schedule) - 1)])
+        rewards.append(reward)
+        t += 1
+        if terminated or truncated:
+            return rewards, info
+
+
+def _group_alive(pgid: int) -> bool:
+    try:
+        os.killpg(pgid, 0)
+    except ProcessLookupError:
+        return False
+    return True
+
+
+def _wait_group_gone(pgid: int, timeout_s: float = 5.0) -> bool:
+    deadline = time.monotonic() + timeout_s
+    while _group_alive(pgid):
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.02)
+    return True
+
+
+def test_chunked_equals_uninterrupted_and_rewards_sum_to_minus_iterations(tmp_path: Path) -> None:
+    cfg = _cfg(tmp_path)
+    env = FoamCaseEnv(cfg)
+    try:
+        obs, info = env.reset(options={"inlet_velocity": U_REF})
+        assert obs.shape == (1,) and obs[0] == pytest.approx(1.0)  # inlet U_REF^2, cells ~0
+        rewards, info = _run_episode(env, BEST)
+        chunked = env.parser.history
+        reference_case = tmp_path / "reference"
+        foam_case.write_episode_case(env.base, reference_case, cfg, U_REF)
+        foam_case.make_uninterrupted(
+            reference_case, foam_case.relaxation_text(foam_case.case_relaxation(reference_case), cfg, *BEST))
+        reference = LogParser(foam_case.CELLS_FUNCTION, foam_case.INLET_FUNCTION)
+        code, _ = run_to_end(reference_case, env.openfoam, reference, timeout_s=120)
+    finally:
+        env.close()
+    assert code == 0 and info["outcome"] == "converged"
+    total = info["iterations"]
+    assert total == reference.converged_at == len(chunked) > 2 * cfg.interval
+    # the residual histories agree to the last printed digit (17 significant digits)
+    assert chunked == reference.history
+    assert sum(rewards) == -total == info["episode"]["return"]
+    assert rewards[:-1] == [-cfg.interval] * (len(rewards) - 1)
+    assert 0 < -rewards[-1] <= cfg.interval
+    assert info["episode"]["steps"] == len(rewards) and info["episode"]["actions"][0] == list(BEST)
+
+
+def test_new_factors_govern_the_iteration_after_the_pause(tmp_path: Path) -> None:
+    cfg = _cfg(tmp_path, interval=20, max_iterations=200)
+    env = FoamCaseEnv(cfg)
+    try:
+        histories = []
+        for second in (BEST, (0.6, 0.4)):
+            env.reset(seed=1)
+            env.step(BEST)
+            env.step(second)
+            histories.append(env.parser.history)
+    finally:
+        env.close()
+    constant, switched = histories
+    assert len(constant) == len(switched) == 40
+    assert constant[:20] == switched[:20]  # iterations 1..20: same factors, same numbers
+    # iteration 21 is the first one relaxed with the new factors: its U matrix already differs
+    assert constant[20]["Ux"] != switched[20]["Ux"]
+
+
+def test_test_criterion_converges_later_than_training_criterion(tmp_path: Path) -> None:
+    iterations = {}
+    for name, convergence in (("train", None), ("test", dict(TEST_CONVERGENCE))):
+        extra = {} if convergence is None else {"convergence": convergence}
+        env = FoamCaseEnv(_cfg(tmp_path / name, interval=100, **extra))
+        try:
+            env.reset(options={"inlet_velocity": U_REF})
+            _, info = _run_episode(env, BEST)
+        finally:
+            env.close()
+        assert info["outcome"] == "converged"
+        limits = convergence or env.cfg.convergence
+        assert all(info["residuals"][field] < limit for field, limit in limits.items())
+        iterations[name] = info["iterations"]
+    assert iterations["train"] < iterations["test"] < 1000
+
+
+def test_divergence_is_an_outcome_with_the_default_penalty(tmp_path: Path) -> None:
+    env = FoamCaseEnv(_cfg(tmp_path, mesh_scale=0.25, interval=50, max_iterations=1000))
+    try:
+        env.reset(options={"inlet_velocity": U_REF})
+        rewards, info = _run_episode(env, BEST)
+    finally:
+        env.close()
+    assert info["outcome"] == "diverged" and "diverged" in info["cause"]
+    assert info["episode"]["outcome"] == "diverged" and info["episode"]["cause"] == info["cause"]
+    steps_before = len(rewards) - 1
+    assert rewards[-1] == -(1000 - 50 * steps_before)  # as if it had run to max_iterations
+    assert sum(rewards) == -1000
+
+
+def test_solver_crash_mid_run_is_recorded_and_the_next_episode_works(tmp_path: Path) -> None:
+    env = FoamCaseEnv(_cfg(tmp_path, failure_penalty=-2000.0))
+    try:
+        env.reset(seed=0)
+        env.step(BEST)
+        pgid = env.solver_pgid
+        assert pgid is not None and _group_alive(pgid)
+        # break the case under the running solver: it resumes, then its next fvSolution read fails
+        (env.case_dir / "system" / foam_case.RELAXATION_FIFO).unlink()
+        _, reward, terminated, truncated, info = env.step(BEST)
+        assert (terminated, truncated, reward) == (True, False, -2000.0)
+        assert info["outcome"] == "crashed" and "FOAM FATAL" in info["cause"]
+        assert "Cannot open include file" in info["cause"]
+        assert "iteration 50" in info["cause"] and info["iterations"] == 50
+        assert info["episode"]["outcome"] == "crashed" and info["episode"]["return"] == -25 - 2000
+        assert _wait_group_gone(pgid)
+        with pytest.raises(RuntimeError):
+            env.step(BEST)
+        env.reset(seed=0)  # the case is rebuilt
+        _, reward, _, _, info = env.step(BEST)
+        assert (reward, info["outcome"]) == (-25.0, "running")
+    finally:
+        env.close()
+
+
+def test_floating_point_exception_is_a_crash(tmp_path: Path) -> None:
+    env = FoamCaseEnv(_cfg(tmp_path))
+    try:
+        env.reset(seed=0)
+        with FoamFile(env.case_dir / "0" / "omega") as omega:  # corrupted field: nu_t = k / 0
+            omega["internalField"] = 0.0
+        _, reward, terminated, _, info = env.step(BEST)
+    finally:
+        env.close()
+    assert terminated and info["outcome"] == "crashed"
+    assert "SIGFPE" in info["cause"] and reward == -1000
+
+
+def test_hung_solver_is_killed_by_the_watchdog(tmp_path: Path) -> None:
+    env = FoamCaseEnv(_cfg(tmp_path, interval=10, step_timeout_s=1.5))
+    try:
+        env.reset(seed=0)
+        env.step(BEST)
+        pgid = env.solver_pgid
+        assert pgid is not None
+        os.killpg(pgid, signal.SIGSTOP)
+        start = time.monotonic()
+        _, reward, terminated, _, info = env.step(BEST)
+        waited = time.monotonic() - start
+    finally:
+        env.close()
+    assert terminated and info["outcome"] == "hung" and "watchdog" in info["cause"]
+    assert 1.5 <= waited < 10 and reward == -(1000 - 10)
+    assert _wait_group_gone(pgid)
+
+
+def test_close_leaves_no_process_behind(tmp_path: Path) -> None:
+    env = FoamCaseEnv(_cfg(tmp_path))
+    env.reset(seed=0)
+    env.step(BEST)
+    pgid = env.solver_pgid
+    assert pgid is not None and _group_alive(pgid)
+    env.close()
+    assert _wait_group_gone(pgid)
+    assert not (tmp_path / "env_0").exists()
+
+
+def test_user_case_with_a_renamed_inlet_patch(tmp_path: Path) -> None:
+    user_case = tmp_path / "my_case"
+    shutil.copytree(foam_case.TEMPLATE_DIR, user_case)
+    with FoamFile(user_case / "system" / "meshParameters") as params:
+        params.update(foam_case.mesh_parameters(0.4, 0.0127))
+    blocks = user_case / "system" / "blockMeshDict"
+    blocks.write_text(blocks.read_text().replace("    inlet\n    {", "    entry\n    {"))
+    for name in ("U", "p", "k", "omega", "nut"):
+        field = user_case / "0" / name
+        field.write_text(field.read_text().replace("    inlet\n    {", "    entry\n    {"))
+    with pytest.raises(CaseError, match="no patch named 'inlet'.*entry"):
+        FoamCaseEnv(_cfg(tmp_path / "wrong", case_dir=user_case))
+    env = FoamCaseEnv(_cfg(tmp_path / "right", case_dir=user_case, inlet_patch="entry"))
+    try:
+        obs, _ = env.reset(options={"inlet_velocity": 50.0})
+        assert obs[0] == pytest.approx(50.0**2 / U_REF**2)
+        _, reward, _, _, info = env.step(BEST)
+        assert reward == -25.0 and info["outcome"] == "running"
+        # the inlet term printed by the solver's function object is the inlet speed squared
+        assert env.parser.inlet_state == pytest.approx(2500.0)
+    finally:
+        env.close()
+    # the user's case itself is untouched
+    original = FoamFile(user_case / "0" / "U")["boundaryField"]["entry"]["value"]
+    np.testing.assert_allclose(original, [44.2, 0, 0])
+
+
+def test_broken_user_case_is_a_one_line_value_error(tmp_path: Path) -> None:
+    user_case = tmp_path / "broken"
+    shutil.copytree(foam_case.TEMPLATE_DIR, user_case)
+    (user_case / "0" / "U").unlink()
+    with pytest.raises(ValueError, match=r"missing 0/U") as error:
+        FoamCaseEnv(_cfg(tmp_path, case_dir=user_case))
+    assert "\n" not in str(error.value)
+
+
+def test_seeded_inlet_velocity_and_residual_features(tmp_path: Path) -> None:
+    env = FoamCaseEnv(_cfg(tmp_path, residual_features=2))
+    try:
+        speeds = [env.reset(seed=s)[1]["inlet_velocity"] for s in (7, 7, 8)]
+        assert speeds[0] == speeds[1] != speeds[2] and all(35 <= v <= 65 for v in speeds)
+        obs, _ = env.reset(seed=7)
+        assert obs.shape == (9,) and env.observation_space_spec.shape == (9,)
+        assert np.all(obs[1:] == 0.0)  # no residual yet: log10(1)
+        obs, _, _, _, info = env.step(BEST)
+        expected = [np.log10(info["residuals"][name]) for name in env.cfg.convergence]
+        np.testing.assert_allclose(obs[5:], expected, rtol=1e-5)
+        assert obs[0] == pytest.approx((env.parser.inlet_state + env.parser.cells_state) / U_REF**2)
+    finally:
+        env.close()
+
+
+def test_protocol_form_matches_the_case_env(tmp_path: Path) -> None:
+    env = FoamEnv(work_dir=tmp_path)
+    params = _cfg(tmp_path, inlet_velocity=40.0)
+    try:
+        obs, state = env.reset(np.array([0, 3], dtype=np.uint32), params)
+        step = env.step(None, state, np.array(BEST), params)
+    finally:
+        env.close()
+    assert obs[0] == pytest.approx(40.0**2 / U_REF**2)
+    assert step.reward == -25.0 and not step.terminated and step.state.iterations == 25
+    assert env.action_space(params).shape == (2,) and env.observation_space(params).shape == (1,)
