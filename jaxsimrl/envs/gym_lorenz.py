@@ -109,7 +109,8 @@ class LorenzGymEnv(gymnasium.Env):
         self._key: jax.Array | None = None
         self._trail: deque[np.ndarray] = deque(maxlen=_RENDER_HISTORY)
 
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+    def reset(self, *, seed: int | None = None,
+              options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
         super().reset(seed=seed)
         params = self._device_params
         unknown = sorted(set(options or {}) - {"state"})
@@ -124,7 +125,7 @@ class LorenzGymEnv(gymnasium.Env):
         self._trail = deque([xyz], maxlen=_RENDER_HISTORY)
         return np.array(obs, dtype=np.float32), {"state": xyz}
 
-    def step(self, action: Any):
+    def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         if self._state is None:
             raise RuntimeError("LorenzGymEnv.step() called before reset()")
         action = np.asarray(action, dtype=np.float32)
