@@ -1,6 +1,6 @@
 """FoamCaseEnv against the real simpleFoam on coarse backward-facing-step meshes (a few seconds each).
 
-mesh_scale 0.4 (2,110 cells) with SIMPLEC and factors (0.95, 0.95) converges in ~180 iterations at the
+mesh_scale 0.4 (3,276 cells) with SIMPLEC and factors (0.95, 0.95) converges in ~180 iterations at the
 paper's training criterion and ~215 at its test criterion; mesh_scale 0.25 diverges with them.
 """
 

@@ -1,0 +1,134 @@
+"""Case generation: inlet values, the 2h geometry, mesh resolution, the bridge's dictionaries; config."""
+
+from __future__ import annotations
+
+import shutil
+import stat
+from pathlib import Path
+
+import numpy as np
+import pytest
+from foamlib import FoamFile
+
+from foam_bridge import case as foam_case
+from foam_bridge.config import STEP_HEIGHT_H, TEST_CONVERGENCE, FoamEnvConfig
+from foam_bridge.errors import OpenFOAMNotFoundError
+from foam_bridge.openfoam import find_openfoam
+
+needs_openfoam = pytest.mark.skipif(shutil.which("blockMesh") is None, reason="OpenFOAM not on PATH")
+H = STEP_HEIGHT_H
+
+
+def _points(case: Path) -> np.ndarray:
+    return np.asarray(FoamFile(case / "constant" / "polyMesh" / "points")[None])
+
+
+def test_inlet_turbulence_follows_the_papers_formula() -> None:
+    k, omega = foam_case.inlet_turbulence(50.0)
+    assert k == pytest.approx(1.5 * (6.1e-4 * 50.0) ** 2, rel=1e-12)  # 1.3954e-3
+    assert omega == pytest.approx(k / (0.009 * 1.56e-5), rel=1e-12)
+    k_ref, _ = foam_case.inlet_turbulence(44.2)
+    assert k_ref == pytest.approx(1.09e-3, rel=1e-3)  # the tutorial's inlet k at U_ref
+
+
+def test_mesh_parameters_scale_cell_counts_and_deepen_only_the_step() -> None:
+    assert foam_case.mesh_parameters(1.0, H) == {"yFloor": 0.0, **foam_case.TUTORIAL_CELLS}
+    coarse = foam_case.mesh_parameters(0.01, H)
+    assert all(coarse[name] == 1 for name in foam_case.TUTORIAL_CELLS)  # at least one cell
+    deep = foam_case.mesh_parameters(0.5, 2 * H)
+    assert deep["yFloor"] == pytest.approx(-1.0)
+    assert deep["nyStep"] == 48 and deep["nyChannel"] == 32  # step blocks keep their cell size
+
+
+@pytest.mark.openfoam
+@needs_openfoam
+@pytest.mark.parametrize("mesh_scale, cells", [(0.25, 1264), (0.4, 3276), (1.0, 20540)])
+def test_mesh_scale_changes_the_cell_count(tmp_path: Path, mesh_scale: float, cells: int) -> None:
+    foam_case.build_base_case(FoamEnvConfig(mesh_scale=mesh_scale), tmp_path / "base", find_openfoam())
+    assert foam_case.cell_count(tmp_path / "base") == cells
+
+
+@pytest.mark.openfoam
+@needs_openfoam
+def test_double_step_height_moves_only_the_floor_behind_the_step(tmp_path: Path) -> None:
+    openfoam = find_openfoam()
+    meshes = {}
+    for name, height in (("h", H), ("2h", 2 * H)):
+        cfg = FoamEnvConfig(mesh_scale=0.25, step_height=height)
+        foam_case.build_base_case(cfg, tmp_path / name, openfoam)
+        meshes[name] = _points(tmp_path / name)
+    single, double = meshes["h"], meshes["2h"]
+    assert single[:, 1].min() == pytest.approx(0.0, abs=1e-12)
+    assert double[:, 1].min() == pytest.approx(-H, abs=1e-12)  # floor 2h below the step's top
+    for points in (single, double):  # inlet channel, top wall and domain length unchanged
+        assert points[:, 1].max() == pytest.approx(9 * H)
+        assert points[:, 0].min() == pytest.approx(-130 * H) and points[:, 0].max() == pytest.approx(50 * H)
+        upstream = points[points[:, 0] < -1e-9]
+        assert upstream[:, 1].min() == pytest.approx(H)  # the upstream floor is the step's top
+    # the step face (x = 0) spans the full step height
+    step_face = double[np.isclose(double[:, 0], 0.0)]
+    assert step_face[:, 1].min() == pytest.approx(-H) and step_face[:, 1].max() == pytest.approx(9 * H)
+
+
+@pytest.mark.openfoam
+@needs_openfoam
+def test_episode_case_dictionaries(tmp_path: Path) -> None:
+    cfg = FoamEnvConfig(mesh_scale=0.25, simple_variant="SIMPLEC", interval=50, max_iterations=300,
+                        convergence=dict(TEST_CONVERGENCE))
+    foam_case.build_base_case(cfg, tmp_path / "base", find_openfoam())
+    episode = tmp_path / "episode"
+    foam_case.write_episode_case(tmp_path / "base", episode, cfg, 50.0)
+    k, omega = foam_case.inlet_turbulence(50.0)
+    velocity = FoamFile(episode / "0" / "U")["boundaryField"]["inlet"]["value"]
+    np.testing.assert_allclose(velocity, [50.0, 0.0, 0.0])
+    for name, value in (("k", k), ("omega", omega)):
+        field = FoamFile(episode / "0" / name)
+        assert field["boundaryField"]["inlet"]["value"] == pytest.approx(value, rel=1e-12)
+        assert field["internalField"] == pytest.approx(value, rel=1e-12)
+    assert foam_case.initial_state(episode, cfg) == pytest.approx((2500.0, 1e-16))
+
+    control = FoamFile(episode / "system" / "controlDict")
+    assert (control["endTime"], control["writeFormat"], control["runTimeModifiable"]) == (300, "binary", True)
+    assert control["OptimisationSwitches"]["fileModificationSkew"] == 0
+    functions = control["functions"]
+    assert functions[foam_case.INLET_FUNCTION]["name"] == "inlet"
+    pauses = [entry[0] for entry in functions[foam_case.PAUSE_FUNCTION]["timeVsFile"]]
+    assert pauses == [50, 100, 150, 200, 250]
+
+    solution = FoamFile(episode / "system" / "fvSolution")
+    assert solution["SIMPLE"]["consistent"] is True
+    assert solution["SIMPLE"]["residualControl"].as_dict() == dict(TEST_CONVERGENCE)
+    assert "relaxationFactors" not in solution
+    text = (episode / "system" / "fvSolution").read_text()
+    assert text.rstrip().endswith(f'#include "{foam_case.RELAXATION_FIFO}"')
+    assert stat.S_ISFIFO((episode / "system" / foam_case.RELAXATION_FIFO).stat().st_mode)
+    assert (episode / "constant" / "polyMesh").is_symlink()
+
+
+@pytest.mark.parametrize("relax_k_omega, expected", [(None, 0.7), (0.8, 0.8)])
+def test_relaxation_text(relax_k_omega: float | None, expected: float) -> None:
+    cfg = FoamEnvConfig(relax_k_omega=relax_k_omega)
+    base = {"fields": {"T": 0.5}, "equations": {'".*"': 0.6}}
+    text = foam_case.relaxation_text(base, cfg, 0.7, 0.3)
+    factors = FoamFile.loads(text)["relaxationFactors"]
+    assert factors["fields"] == {"T": 0.5, "p": 0.3}
+    assert factors["equations"] == {'".*"': 0.6, "U": 0.7, "k": expected, "omega": expected}
+
+
+def test_missing_openfoam_is_a_one_line_error_saying_how_to_install(tmp_path: Path) -> None:
+    with pytest.raises(OpenFOAMNotFoundError, match="apt-get install -y openfoam") as error:
+        find_openfoam(path=str(tmp_path / "empty"))
+    assert "\n" not in str(error.value)
+
+
+@pytest.mark.parametrize("overrides, field", [
+    ({"mesh_scale": 0.0}, "mesh_scale"), ({"interval": 0}, "interval"),
+    ({"max_iterations": 50}, "max_iterations"), ({"simple_variant": "PISO"}, "simple_variant"),
+    ({"action_low": (0.5, 0.2), "action_high": (0.4, 0.95)}, "action_low"),
+    ({"inlet_velocity": (65.0, 35.0)}, "inlet_velocity"), ({"convergence": {}}, "convergence"),
+    ({"inlet_patch": ""}, "inlet_patch"), ({"relax_k_omega": 1.5}, "relax_k_omega"),
+])
+def test_bad_config_is_a_one_line_value_error_naming_the_field(overrides: dict, field: str) -> None:
+    with pytest.raises(ValueError, match=f"FoamEnvConfig.{field}") as error:
+        FoamEnvConfig(**overrides).validate()
+    assert "\n" not in str(error.value)
