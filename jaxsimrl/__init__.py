@@ -8,8 +8,6 @@ from __future__ import annotations
 
 import gymnasium
 
-__version__ = "0.1.0"
-
 LORENZ_ENV_ID = "jaxsimrl/Lorenz-v0"
 
 if LORENZ_ENV_ID not in gymnasium.registry:  # re-imports (importlib.reload) must not warn about overrides
