@@ -36,6 +36,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 
 from foam_bridge.backends import WORKER_DIED, Reply, Request, make_backend
 from foam_bridge.config import FoamEnvConfig
+from foam_bridge.env import FoamEnv, seed_from_key
 from jaxsimrl.envs.protocol import BoxSpec, Step
 
 SEED_BOUND = 2**31 - 1
@@ -46,20 +47,6 @@ def failure_reward(cfg: FoamEnvConfig, iterations: int) -> float:
     if cfg.failure_penalty is not None:
         return float(cfg.failure_penalty)
     return -float(max(cfg.max_iterations - iterations, 0))
-
-
-def observation_spec(cfg: FoamEnvConfig) -> BoxSpec:
-    """The observation box: the paper's state (>= 0) and optional log10-residual features (unbounded)."""
-    size = cfg.observation_size
-    low = np.full(size, -np.inf, np.float32)
-    low[0] = 0.0
-    return BoxSpec(low=low, high=np.full(size, np.inf, np.float32), shape=(size,))
-
-
-def action_spec(cfg: FoamEnvConfig) -> BoxSpec:
-    """The action box (alpha_u, alpha_p) of the config."""
-    return BoxSpec(low=np.asarray(cfg.action_low, np.float32), high=np.asarray(cfg.action_high, np.float32),
-                   shape=(2,))
 
 
 class _InfoBatcher(VectorEnv):
@@ -107,8 +94,9 @@ class BatchedFoamEnv:
         self._temp_dir = chosen is None
         self.work_dir = Path(tempfile.mkdtemp(prefix="foam_bridge_")) if chosen is None else Path(chosen)
         self.work_dir.mkdir(parents=True, exist_ok=True)
-        self.observation_spec = observation_spec(cfg)
-        self.action_spec = action_spec(cfg)
+        spaces = FoamEnv()  # the single env's protocol form: its spaces are functions of the config
+        self.observation_spec = spaces.observation_space(cfg)
+        self.action_spec = spaces.action_space(cfg)
         self._batcher = _InfoBatcher(num_envs)
         self._seed = seed
         self._streams = self._seed_streams(seed)
@@ -264,12 +252,6 @@ def _reset_error(reply: Reply) -> Exception:
     return RuntimeError(message)
 
 
-def key_to_seed(key: Any) -> int:
-    """A deterministic int seed from a JAX PRNG key (uint32 array, legacy or ``key_data``) or an int."""
-    words = np.asarray(key).astype(np.uint64).ravel().tolist()
-    return int(np.random.SeedSequence(words).generate_state(1)[0]) % SEED_BOUND
-
-
 class BatchedState(tuple):
     """Host-side state handle of the protocol form: the episode counter and iterations of every env."""
 
@@ -316,7 +298,7 @@ class BatchedFoamProtocol:
 
     def reset(self, key: Any, params: Any = None) -> tuple[np.ndarray, BatchedState]:
         self._check(params)
-        obs, _ = self.env.reset(seed=key_to_seed(key))
+        obs, _ = self.env.reset(seed=seed_from_key(key))
         self._episodes[:] = 0
         return obs, BatchedState(self._episodes.copy(), np.zeros(self.env.num_envs, np.int32))
 

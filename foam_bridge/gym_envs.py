@@ -14,6 +14,7 @@ gymnasium's SAME_STEP mode: ``infos["final_obs"]`` / ``infos["final_info"]`` hol
 from __future__ import annotations
 
 import dataclasses
+import os
 import shutil
 import tempfile
 from typing import Any
@@ -49,6 +50,22 @@ def box(spec: BoxSpec) -> Box:
     return Box(low=low, high=high, shape=spec.shape, dtype=np.float32)
 
 
+def _private_dir(cfg: FoamEnvConfig) -> str:
+    """A fresh directory under ``cfg.work_dir`` (or the temp dir) for one gym env instance.
+
+    gymnasium makes several instances from the same kwargs (check_env, make_vec): a directory of
+    their own keeps one instance's close() from deleting another's cases.
+    """
+    if cfg.work_dir is not None:
+        os.makedirs(cfg.work_dir, exist_ok=True)
+    return tempfile.mkdtemp(prefix="foam_bridge_", dir=cfg.work_dir)
+
+
+def _remove_private_dir(cfg: FoamEnvConfig, path: str | None) -> None:
+    if path is not None and not cfg.keep_cases:
+        shutil.rmtree(path, ignore_errors=True)
+
+
 def _no_render(render_mode: str | None) -> None:
     if render_mode is not None:
         raise ValueError(f"render_mode: foam_bridge envs do not render, got {render_mode!r}")
@@ -58,8 +75,8 @@ class RelaxationControlEnv(gymnasium.Env):
     """One simpleFoam case (foam_bridge.env.FoamCaseEnv) as a gymnasium Env.
 
     Episodes are seeded from the env's ``np_random`` (seeded by ``reset(seed=...)``), so the same seed
-    gives the same inlet velocities. Without ``work_dir`` the case lives in a temporary directory that
-    ``close()`` removes.
+    gives the same inlet velocities. The case lives in a fresh directory under ``work_dir`` (default:
+    the system's temporary directory) that ``close()`` removes unless ``keep_cases``.
     """
 
     metadata = {"render_modes": []}
@@ -69,8 +86,8 @@ class RelaxationControlEnv(gymnasium.Env):
 
         _no_render(render_mode)
         self.cfg = config_from_kwargs(config)
-        self._temp_dir = tempfile.mkdtemp(prefix="foam_bridge_") if self.cfg.work_dir is None else None
-        self.case_env = FoamCaseEnv(self.cfg, work_dir=self._temp_dir or self.cfg.work_dir, env_id=0)
+        self._dir: str | None = _private_dir(self.cfg)
+        self.case_env = FoamCaseEnv(self.cfg, work_dir=self._dir, env_id=0)
         self.observation_space = box(self.case_env.observation_space_spec)
         self.action_space = box(self.case_env.action_space_spec)
 
@@ -87,9 +104,8 @@ class RelaxationControlEnv(gymnasium.Env):
 
     def close(self) -> None:
         self.case_env.close()
-        if self._temp_dir is not None:
-            shutil.rmtree(self._temp_dir, ignore_errors=True)
-            self._temp_dir = None
+        _remove_private_dir(self.cfg, self._dir)
+        self._dir = None
 
 
 class RelaxationControlVecEnv(VectorEnv):
@@ -109,8 +125,9 @@ class RelaxationControlVecEnv(VectorEnv):
     ) -> None:
         _no_render(render_mode)
         self.cfg = config_from_kwargs(config)
+        self._dir: str | None = _private_dir(self.cfg)
         self.batch = BatchedFoamEnv(self.cfg, num_envs, backend=backend, pool=pool, ray_address=ray_address,
-                                    seed=seed)
+                                    work_dir=self._dir, seed=seed)
         self.num_envs = num_envs
         self.single_observation_space = box(self.batch.observation_spec)
         self.single_action_space = box(self.batch.action_spec)
@@ -127,3 +144,5 @@ class RelaxationControlVecEnv(VectorEnv):
 
     def close_extras(self, **kwargs: Any) -> None:
         self.batch.close()
+        _remove_private_dir(self.cfg, self._dir)
+        self._dir = None

@@ -1,0 +1,163 @@
+"""``jaxsimrl grid-foam`` and foam_bridge.grid: CLI errors, CSV/heatmap output, and a real 2x2 grid.
+
+The end-to-end test runs real simpleFoam on the coarse mesh and checks one cell against FoamCaseEnv
+driven directly with the same constant factors.
+"""
+
+from __future__ import annotations
+
+import csv
+import shutil
+
+import numpy as np
+import pytest
+
+from foam_bridge.config import FoamEnvConfig
+from foam_bridge.grid import (
+    GRID_COLUMNS,
+    GridCell,
+    best_cell,
+    cell_label,
+    check_factors,
+    grid_config,
+    plot_grid,
+    read_grid_csv,
+    write_grid_csv,
+)
+from jaxsimrl.cli.main import main
+
+HAVE_OPENFOAM = shutil.which("simpleFoam") is not None
+
+
+def needs_openfoam(test):
+    """Mark a test that runs the real simpleFoam (skipped where it is not installed)."""
+    return pytest.mark.openfoam(pytest.mark.skipif(not HAVE_OPENFOAM, reason="simpleFoam not on PATH")(test))
+
+
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+
+
+def run_cli(capsys, *argv: str) -> tuple[int, str, str]:
+    """Exit code, stderr and stdout of ``jaxsimrl grid-foam ...`` (argparse exits are caught as codes)."""
+    try:
+        code = main(["grid-foam", *argv])
+    except SystemExit as exit_:
+        code = exit_.code
+    captured = capsys.readouterr()
+    return code, captured.err, captured.out
+
+
+GOOD = ("--alpha-u", "0.7", "--alpha-p", "0.5")
+
+
+@pytest.mark.parametrize(
+    ("argv", "needle"),
+    [
+        (("--alpha-u", "1.5", "--alpha-p", "0.5"), "(0, 1]"),
+        (("--alpha-u", "0", "--alpha-p", "0.5"), "(0, 1]"),
+        (("--alpha-u", "--alpha-p", "0.5"), "--alpha-u"),
+        ((*GOOD, "--mesh-scale", "-1"), "positive"),
+        ((*GOOD, "--mesh-scale", "nan"), "positive"),
+        ((*GOOD, "--pool", "0"), "positive integer"),
+        ((*GOOD, "--max-iterations", "50"), "max_iterations"),
+        ((*GOOD, "--criterion", "strict"), "invalid choice"),
+    ],
+)
+def test_bad_arguments_are_one_line_exit_2(capsys, tmp_path, argv, needle):
+    code, err, _ = run_cli(capsys, *argv, "--out", str(tmp_path / "out"))
+    assert code == 2
+    assert err.count("\n") == 1 and needle in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_out_dir_that_is_a_file_is_rejected(capsys, tmp_path):
+    target = tmp_path / "taken"
+    target.write_text("not a directory")
+    code, err, _ = run_cli(capsys, *GOOD, "--out", str(target))
+    assert code == 2 and err.count("\n") == 1 and "not a directory" in err
+    assert target.read_text() == "not a directory"
+
+
+def test_missing_openfoam_is_one_line_exit_2(capsys, tmp_path, monkeypatch):
+    monkeypatch.setenv("PATH", str(tmp_path / "empty"))
+    code, err, _ = run_cli(capsys, *GOOD, "--out", str(tmp_path / "out"))
+    assert code == 2 and err.count("\n") == 1
+    assert "openfoam" in err.lower() and "install" in err.lower()
+
+
+def test_check_factors_and_grid_config_cover_the_grid():
+    assert check_factors([0.5, 1.0], "alpha_u") == (0.5, 1.0)
+    with pytest.raises(ValueError, match="alpha_p"):
+        check_factors([], "alpha_p")
+    with pytest.raises(ValueError, match=r"\(0, 1\]"):
+        check_factors([0.5, 1.01], "alpha_u")
+    cfg = grid_config(FoamEnvConfig(), [0.1, 0.9], [0.5, 1.0])
+    assert cfg.action_low == (0.1, 0.2) and cfg.action_high == (0.95, 1.0)
+
+
+CELLS = [
+    GridCell(0.5, 0.5, 834, "converged", 1.0),
+    GridCell(0.5, 0.9, 1053, "converged", 1.5),
+    GridCell(0.9, 0.5, 3000, "truncated", 2.0),
+    GridCell(0.9, 0.9, 1269, "crashed", 0.5),
+]
+
+
+def test_csv_round_trip_and_best_cell(tmp_path):
+    path = tmp_path / "grid.csv"
+    write_grid_csv(CELLS, path)
+    with open(path, newline="") as handle:
+        assert tuple(next(csv.reader(handle))) == GRID_COLUMNS
+    assert read_grid_csv(path) == CELLS
+    assert best_cell(CELLS) == CELLS[0]
+    assert best_cell(CELLS[2:]) is None
+    assert [cell_label(c) for c in CELLS] == ["834", "1053", ">3000", "crashed\n@1269"]
+    assert [p.name for p in tmp_path.iterdir()] == ["grid.csv"]  # no temporary file left behind
+
+
+def test_heatmap_is_a_png_of_the_grid(tmp_path):
+    import matplotlib.image
+
+    path = tmp_path / "grid.png"
+    plot_grid(CELLS, path, "test grid")
+    assert path.read_bytes()[:8] == PNG_MAGIC
+    image = matplotlib.image.imread(path)
+    assert image.ndim == 3 and image.shape[0] > 100 and image.shape[1] > 100
+    assert image[..., :3].std() > 0.05  # drawn, not blank
+
+
+@needs_openfoam
+def test_grid_end_to_end_matches_the_env(capsys, tmp_path):
+    from foam_bridge.env import FoamCaseEnv
+
+    out = tmp_path / "out"
+    # Mesh 0.5: the coarsest on which some cells converge (alpha_u 0.95) within the cap; 0.7 does not.
+    argv = ("--alpha-u", "0.7", "0.95", "--alpha-p", "0.5", "0.95", "--mesh-scale", "0.5", "--pool", "2",
+            "--max-iterations", "300", "--simple-variant", "SIMPLEC", "--out", str(out))
+    code, err, stdout = run_cli(capsys, *argv)
+    assert code == 0, err
+    assert sorted(p.name for p in out.iterdir()) == ["grid.csv", "grid.png"]
+    cells = read_grid_csv(out / "grid.csv")
+    assert [(c.alpha_u, c.alpha_p) for c in cells] == [(0.7, 0.5), (0.7, 0.95), (0.95, 0.5), (0.95, 0.95)]
+    for cell in cells:
+        assert cell.outcome in ("converged", "truncated", "crashed", "diverged", "hung")
+        assert 0 < cell.iterations <= 300 and cell.wall_time_s > 0
+        assert (cell.outcome == "truncated") == (cell.iterations == 300)
+    assert (out / "grid.png").read_bytes()[:8] == PNG_MAGIC
+    best = best_cell(cells)
+    assert best is not None and f"alpha_u={best.alpha_u:g} alpha_p={best.alpha_p:g}" in stdout
+
+    # The best cell again, with FoamCaseEnv driven directly: same iterations and outcome.
+    cell = best
+    base = FoamEnvConfig(mesh_scale=0.5, simple_variant="SIMPLEC", inlet_velocity=44.2, max_iterations=300)
+    cfg = grid_config(base, [0.7, 0.95], [0.5, 0.95])
+    env = FoamCaseEnv(cfg, work_dir=tmp_path / "direct", env_id=0)
+    try:
+        env.reset(seed=0)
+        done = False
+        while not done:
+            _, _, terminated, truncated, info = env.step(np.array([cell.alpha_u, cell.alpha_p]))
+            done = terminated or truncated
+    finally:
+        env.close()
+    assert (info["iterations"], info["outcome"]) == (cell.iterations, cell.outcome)

@@ -1,0 +1,179 @@
+"""BatchedFoamEnv on the local process pool: auto-reset, per-env accounting, surviving a killed worker.
+
+The OpenFOAM tests run the real simpleFoam on the coarse mesh (mesh_scale 0.25) with a low iteration
+cap, so episodes end within a few steps.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import subprocess
+import time
+
+import numpy as np
+import pytest
+
+from foam_bridge.backends import WORKER_DIED, env_dir, validate_pool
+from foam_bridge.backends.reaper import kill_processes_under, processes_under
+from foam_bridge.batched import BatchedFoamEnv, failure_reward
+from foam_bridge.config import FoamEnvConfig
+
+HAVE_OPENFOAM = shutil.which("simpleFoam") is not None
+# Coarse mesh, 300-iteration cap: an episode is at most 3 steps of 100 iterations.
+COARSE = FoamEnvConfig(mesh_scale=0.25, simple_variant="SIMPLEC", relax_k_omega=0.8, max_iterations=300,
+                       step_timeout_s=60.0)
+SAFE_ACTION = (0.9, 0.5)  # stable on this mesh well past the cap
+
+
+def needs_openfoam(test):
+    """Mark a test that runs the real simpleFoam (skipped where it is not installed)."""
+    return pytest.mark.openfoam(pytest.mark.skipif(not HAVE_OPENFOAM, reason="simpleFoam not on PATH")(test))
+
+
+# ----- no solver needed --------------------------------------------------------------------------
+def test_validate_pool_rejects_bad_sizes():
+    validate_pool(3, 2)
+    for num_envs, pool in [(2, 0), (2, 3), (0, 1), (2, 1.5), (2, True)]:
+        with pytest.raises(ValueError, match="pool|num_envs"):
+            validate_pool(num_envs, pool)
+
+
+def test_failure_reward_is_the_rest_of_the_cap_or_the_penalty():
+    assert failure_reward(FoamEnvConfig(max_iterations=4000), 1269) == -2731.0
+    assert failure_reward(FoamEnvConfig(max_iterations=4000, failure_penalty=-2000.0), 1269) == -2000.0
+
+
+def test_reaper_kills_the_process_group_under_a_directory(tmp_path):
+    case = tmp_path / "env_0"
+    case.mkdir()
+    # A stand-in for an orphaned solver: its own session, cwd in the case, with a child in its group.
+    proc = subprocess.Popen(["sh", "-c", "sleep 60 & sleep 60"], cwd=case, start_new_session=True)
+    bystander = subprocess.Popen(["sleep", "60"], cwd=tmp_path, start_new_session=True)
+    try:
+        time.sleep(0.2)
+        assert proc.pid in processes_under(case)
+        assert bystander.pid not in processes_under(case)
+        assert kill_processes_under(case) >= 1
+        assert proc.wait(timeout=5) == -signal.SIGKILL
+        deadline = time.monotonic() + 5
+        while processes_under(case) and time.monotonic() < deadline:  # the backgrounded child too
+            time.sleep(0.05)
+        assert processes_under(case) == []
+        assert bystander.poll() is None
+    finally:
+        for p in (proc, bystander):
+            p.kill()
+            p.wait()
+
+
+def test_bad_actions_and_backend_are_one_line_value_errors(tmp_path):
+    with pytest.raises(ValueError, match="backend"):
+        BatchedFoamEnv(COARSE, 2, backend="mpi", work_dir=tmp_path)
+    with pytest.raises(ValueError, match="pool"):
+        BatchedFoamEnv(COARSE, 2, pool=3, work_dir=tmp_path)
+    with BatchedFoamEnv(COARSE, 2, pool=1, work_dir=tmp_path) as env, \
+            pytest.raises(ValueError, match=r"shape \(2, 2\)"):
+        env.step(np.zeros((3, 2)))
+    assert list(tmp_path.iterdir()) == []  # workers create case dirs only when an env is used
+
+
+# ----- real simpleFoam ---------------------------------------------------------------------------
+def pick(infos: dict, i: int) -> dict:
+    """Env ``i``'s entries of gymnasium-batched infos (nested dicts are batched key by key)."""
+    return {k: pick(v, i) if isinstance(v, dict) else v[i] for k, v in infos.items() if not k.startswith("_")}
+
+
+def run_until_each_env_ended(env: BatchedFoamEnv, episodes: int, action=SAFE_ACTION, max_steps: int = 30):
+    """Step with a constant action until every env ended ``episodes`` episodes; returns per-env records."""
+    obs, infos = env.reset()
+    returns = np.zeros(env.num_envs)
+    ended: list[list[dict]] = [[] for _ in range(env.num_envs)]
+    actions = np.tile(action, (env.num_envs, 1))
+    for _ in range(max_steps):
+        obs, reward, terminated, truncated, infos = env.step(actions)
+        returns += reward
+        assert obs.shape == (env.num_envs, COARSE.observation_size) and obs.dtype == np.float32
+        for i in np.flatnonzero(terminated | truncated):
+            final = pick(infos["final_info"], i)
+            final["sum_of_rewards"] = returns[i]
+            final["next_obs"] = obs[i].copy()
+            final["next_inlet_velocity"] = infos["inlet_velocity"][i]
+            final["final_obs"] = infos["final_obs"][i]
+            ended[i].append(final)
+            returns[i] = 0.0
+        if all(len(e) >= episodes for e in ended):
+            return ended
+    raise AssertionError(f"episodes did not end within {max_steps} steps: {[len(e) for e in ended]}")
+
+
+@needs_openfoam
+def test_pool_of_two_runs_two_cases_with_autoreset_and_accounting(tmp_path):
+    with BatchedFoamEnv(COARSE, 2, pool=2, work_dir=tmp_path, seed=1) as env:
+        assert len(set(env.worker_pids())) == 2
+        ended = run_until_each_env_ended(env, episodes=2)
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["env_0", "env_1"]
+    for records in ended:
+        velocities = [r["inlet_velocity"] for r in records]
+        assert len(set(velocities)) == len(velocities)  # each episode drew its own inlet velocity
+        for record in records:
+            assert 0 < record["iterations"] <= COARSE.max_iterations
+            # gamma = 1: the return is minus the iterations (a failure: as if run to the cap), and the
+            # host's per-env sum of the rewards agrees with the env's own episode record.
+            failed = record["outcome"] in ("crashed", "diverged", "hung")
+            expected = -COARSE.max_iterations if failed else -record["iterations"]
+            assert record["sum_of_rewards"] == expected == record["episode"]["return"]
+            # Auto-reset: obs is the next episode's first observation (internal field at rest, so the
+            # state is the inlet's |U|^2 only), not the final one.
+            assert record["next_obs"][0] == pytest.approx(
+                record["next_inlet_velocity"] ** 2 / COARSE.state_scale, rel=1e-3)
+            assert record["final_obs"][0] != pytest.approx(record["next_obs"][0], rel=1e-3)
+
+
+@needs_openfoam
+def test_killed_worker_ends_only_its_episode_and_is_replaced(tmp_path):
+    with BatchedFoamEnv(COARSE, 2, pool=2, work_dir=tmp_path, seed=2) as env:
+        env.reset()
+        actions = np.tile(SAFE_ACTION, (2, 1))
+        env.step(actions)
+        victim = env.worker_pids()[0]
+        orphans = processes_under(env_dir(tmp_path, 0))
+        assert orphans, "env 0 should have a paused solver"
+        os.kill(victim, signal.SIGKILL)
+        obs, reward, terminated, truncated, infos = env.step(actions)
+
+        assert terminated.tolist() == [True, False] and truncated.tolist() == [False, False]
+        assert infos["final_info"]["outcome"][0] == "crashed"
+        assert infos["final_info"]["cause"][0] == WORKER_DIED
+        assert infos["final_info"]["episode"]["iterations"][0] == 100
+        assert reward[0] == failure_reward(COARSE, 100)
+        assert reward[1] == -100 and infos["iterations"][1] == 200  # the other env went on
+        new_pid = env.worker_pids()[0]
+        assert new_pid != victim and env.worker_pids()[1] != victim
+        for pid in orphans:  # the dead worker's solver was reaped, not left running
+            assert not os.path.exists(f"/proc/{pid}") or _is_zombie(pid)
+
+        obs, reward, terminated, truncated, infos = env.step(actions)  # env 0's new episode runs
+        assert infos["iterations"][0] == 100 and infos["outcome"][0] == "running"
+        assert reward[0] == -100
+
+
+def _is_zombie(pid: int) -> bool:
+    with open(f"/proc/{pid}/stat") as handle:
+        return handle.read().split(")")[-1].split()[0] == "Z"
+
+
+@needs_openfoam
+def test_protocol_form_is_numpy_in_numpy_out(tmp_path):
+    with BatchedFoamEnv(COARSE, 2, pool=2, work_dir=tmp_path) as env:
+        proto = env.protocol()
+        obs, state = proto.reset(np.array([0, 5], np.uint32), None)
+        assert obs.shape == (2, 1) and obs.dtype == np.float32
+        assert state.iterations.tolist() == [0, 0]
+        step = proto.step(None, state, np.tile(SAFE_ACTION, (2, 1)), None)
+        assert step.reward.dtype == np.float32 and step.reward.tolist() == [-100.0, -100.0]
+        assert step.state.iterations.tolist() == [100, 100]
+        assert step.terminated.dtype == bool and step.truncated.shape == (2,)
+        with pytest.raises(ValueError, match="params"):
+            proto.step(None, step.state, np.tile(SAFE_ACTION, (2, 1)), FoamEnvConfig())
