@@ -10,6 +10,7 @@ JAX is imported inside the run functions so ``--help`` and flag errors stay inst
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import math
 import shutil
@@ -108,46 +109,68 @@ class TrainPlan:
 def run_train(args: argparse.Namespace, on_chunk: Any = None) -> int:
     """Entry point of train-lorenz; ``on_chunk(updates_done)`` is a test hook (see runs.training.train)."""
     plan = _resume_plan(args) if args.resume else _fresh_plan(args)
-    import jax
-
-    from jaxsimrl.agents.ppo import make_train
-    from jaxsimrl.envs.lorenz import Lorenz
     from jaxsimrl.runs.checkpoint import Checkpoints
     from jaxsimrl.runs.progress import TrainingProgress
-    from jaxsimrl.runs.run_dir import MetricsLog, RunDir
+    from jaxsimrl.runs.run_dir import RunDir
     from jaxsimrl.runs.training import Session, train
 
-    try:
-        trainer = make_train(plan.config, Lorenz())
-    except ValueError as err:
-        raise UsageError(f"invalid config: {err}") from None
-    state = trainer.init(jax.random.PRNGKey(plan.seed))
+    trainer = lorenz_trainer(plan.config)
     run = RunDir(plan.run_path) if plan.resume else RunDir.create(plan.run_path)
-    record = _config_record(plan, jax)
-    run.write_config(record)
-    with Checkpoints(run.checkpoints) as checkpoints:
-        done, log = 0, MetricsLog(run)
-        if plan.resume:
-            state, meta = checkpoints.restore(state)
-            done = int(meta["update"])
-            log = MetricsLog.load(run, done)  # drops rows of a chunk whose checkpoint never landed
-            log.write()
-        extra = {"run_dir": str(run.path), "seed": plan.seed, "network": plan.config.network}
-        session = Session(run, trainer, log, checkpoints, meta={"config": record}, summary_extra=extra)
-        try:
+    try:
+        with Checkpoints(run.checkpoints) as checkpoints:
+            state, done, log = _starting_point(plan, trainer, run, checkpoints)
+            record = _config_record(plan)
+            run.write_config(record)
+            extra = {"run_dir": str(run.path), "seed": plan.seed, "network": plan.config.network}
+            session = Session(run, trainer, log, checkpoints, meta={"config": record}, summary_extra=extra)
             total = trainer.num_updates * plan.config.steps_per_update
             with TrainingProgress(total, log.env_steps) as progress:
                 train(session, state, done, progress, on_chunk)
-        except KeyboardInterrupt:
-            return _interrupted(run, checkpoints, plan)
-        summary = session.write_summary()
+            summary = session.write_summary()
+    except KeyboardInterrupt:
+        return _interrupted(run)
     _print_summary(summary, run)
     return 0
 
 
-def _config_record(plan: TrainPlan, jax: Any) -> dict[str, Any]:
+@functools.lru_cache(maxsize=2)
+def lorenz_trainer(config: Any) -> Any:
+    """The PPO trainer of ``config`` on the Lorenz env. Trainers are stateless, so repeated runs in one
+    process (notebooks, tests) share one and compile its chunk once."""
+    from jaxsimrl.agents.ppo import make_train
+    from jaxsimrl.envs.lorenz import Lorenz
+
+    try:
+        return make_train(config, Lorenz())
+    except ValueError as err:
+        raise UsageError(f"invalid config: {err}") from None
+
+
+def _starting_point(plan: TrainPlan, trainer: Any, run: Any, checkpoints: Any) -> tuple[Any, int, Any]:
+    """(state, updates done, metrics log): fresh, or restored from the run's last checkpoint."""
+    import jax
+
+    from jaxsimrl.runs.run_dir import MetricsLog
+
+    key = jax.random.PRNGKey(plan.seed)
+    if not plan.resume:
+        return trainer.init(key), 0, MetricsLog(run)
+    try:
+        # eval_shape gives the state's structure without computing it; orbax restores the saved shardings.
+        state, meta = checkpoints.restore(jax.eval_shape(trainer.init, key))
+    except ValueError as err:
+        raise UsageError(f"cannot resume: {err}") from None
+    done = int(meta["update"])
+    log = MetricsLog.load(run, done)  # drops rows of a chunk whose checkpoint never landed
+    log.write()
+    return state, done, log
+
+
+def _config_record(plan: TrainPlan) -> dict[str, Any]:
     """config.json: the resolved config plus what is needed to reproduce or audit the run."""
     from importlib.metadata import version
+
+    import jax
 
     now = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
     base = plan.record if plan.resume else {"env": "lorenz", "seed": plan.seed, "created_utc": now}
@@ -158,9 +181,10 @@ def _config_record(plan: TrainPlan, jax: Any) -> dict[str, Any]:
     return record
 
 
-def _interrupted(run: Any, checkpoints: Any, plan: TrainPlan) -> int:
+def _interrupted(run: Any) -> int:
     """Ctrl-C: everything on disk is whole (writes are atomic and Ctrl-C waits for a chunk's writes)."""
-    steps = checkpoints.steps()
+    # Orbax names a checkpoint by its step only once it is complete.
+    steps = sorted(int(p.name) for p in run.checkpoints.glob("*") if p.name.isdigit())
     if steps:
         sys.stderr.write(f"jaxsimrl train-lorenz: interrupted; saved up to update {steps[-1]}. Resume with: "
                          f"jaxsimrl train-lorenz --resume {run.path}\n")

@@ -111,10 +111,14 @@ def load_trained(run_path: Path) -> tuple[Any, Any, dict[str, Any]]:
     record = run.read_config()
     config = PPOConfig.from_dict(record["ppo"])
     env = Lorenz()
-    # A freshly initialised state gives the restore its tree structure, shapes and shardings.
-    template = make_train(config, env).init(jax.random.PRNGKey(int(record.get("seed", 0))))
     with Checkpoints(run.checkpoints, writable=False) as checkpoints:
-        state, meta = checkpoints.restore(template)
+        step = checkpoints.latest_step()  # fail fast, before anything is compiled
+        # The structure of a fresh state without computing it, all on one device: acting is unsharded.
+        abstract = jax.eval_shape(make_train(config, env).init, jax.random.PRNGKey(0))
+        device = jax.sharding.SingleDeviceSharding(jax.devices()[0])
+        abstract = jax.tree.map(lambda leaf: jax.ShapeDtypeStruct(leaf.shape, leaf.dtype, sharding=device),
+                                abstract)
+        state, meta = checkpoints.restore(abstract, step)
     return make_policy(config, env), state, meta
 
 

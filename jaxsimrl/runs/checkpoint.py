@@ -71,9 +71,11 @@ class Checkpoints:
 
     def restore(self, abstract_state: Any, step: int | None = None) -> tuple[Any, dict[str, Any]]:
         """Checkpoint ``step`` (default: the latest) restored into the structure of ``abstract_state``
-        (e.g. ``jax.eval_shape(trainer.init, key)``); returns ``(state, meta)``."""
+        (e.g. a freshly initialised state, or ``jax.eval_shape`` of one); returns ``(state, meta)``.
+        With ``abstract_state=None`` the state comes back as saved on disk: nested dicts of arrays."""
         step = self.latest_step() if step is None else step
-        self._check_compatible(step, abstract_state)
+        if abstract_state is not None:
+            self._check_compatible(step, abstract_state)
         args = ocp.args.Composite(
             **{STATE_ITEM: ocp.args.StandardRestore(abstract_state), META_ITEM: ocp.args.JsonRestore()}
         )
