@@ -50,8 +50,9 @@ def learn(ctx: RolloutContext, tx: optax.GradientTransformation, params: Any, op
     cfg = ctx.config
     chunks, seq_len = transitions.reward.shape[:2]
     flat = lambda x: x.reshape((chunks * seq_len,) + x.shape[2:])  # noqa: E731
-    advantages, targets = compute_gae(flat(transitions.reward), flat(transitions.value),
-                                      flat(transitions.done), last_value, cfg.gamma, cfg.gae_lambda)
+    advantages, targets = compute_gae(
+        flat(transitions.reward), flat(transitions.value), flat(transitions.terminated),
+        flat(transitions.truncated), flat(transitions.final_value), last_value, cfg.gamma, cfg.gae_lambda)
     unflat = lambda x: x.reshape((chunks, seq_len) + x.shape[1:])  # noqa: E731
     data = Batch(transitions.obs, transitions.starts, transitions.u, transitions.log_prob, transitions.value,
                  unflat(advantages), unflat(targets), carries)

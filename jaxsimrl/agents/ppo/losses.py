@@ -1,9 +1,9 @@
 """GAE(lambda) and the PPO clipped-surrogate loss.
 
-Bootstrapping convention: ``rewards[t]`` already includes ``gamma * V(final obs)`` for a step that
-*truncated* its episode (the rollout computes that value before resetting the env). ``dones[t]``
-(terminated or truncated) then cuts the recursion, so a terminated episode bootstraps nothing and a
-truncated one bootstraps exactly the value of its last real observation.
+Bootstrapping: after a step that *terminated* its episode the next value is 0; after a step that was
+*truncated* it is ``final_values[t]``, the critic's value of the episode's last real observation (the
+rollout evaluates it before resetting the env); otherwise it is ``values[t + 1]`` (``last_value`` after
+the final step). The GAE recursion is cut at every episode end.
 """
 
 from __future__ import annotations
@@ -16,16 +16,18 @@ import jax.numpy as jnp
 from jaxsimrl.agents.ppo.distribution import gaussian
 
 
-def compute_gae(rewards: jax.Array, values: jax.Array, dones: jax.Array, last_value: jax.Array,
-                gamma: float, gae_lambda: float) -> tuple[jax.Array, jax.Array]:
+def compute_gae(rewards: jax.Array, values: jax.Array, terminated: jax.Array, truncated: jax.Array,
+                final_values: jax.Array, last_value: jax.Array, gamma: float, gae_lambda: float
+                ) -> tuple[jax.Array, jax.Array]:
     """Advantages and value targets for time-major (T, ...) arrays.
 
-    ``values[t]`` = V(obs_t); ``last_value`` = V(obs_T), the observation after the last step (ignored
-    where ``dones[T-1]``). Returns (advantages, targets = advantages + values).
+    ``values[t]`` = V(obs_t); ``final_values[t]`` = V(final obs of step t), used only where
+    ``truncated[t]``; ``last_value`` = V(obs after the last step). Returns (advantages, advantages + values).
     """
-    not_done = 1.0 - dones.astype(values.dtype)
     next_values = jnp.concatenate([values[1:], last_value[None]], axis=0)
-    deltas = rewards + gamma * next_values * not_done - values
+    next_values = jnp.where(truncated, final_values, jnp.where(terminated, 0.0, next_values))
+    not_done = 1.0 - (terminated | truncated).astype(values.dtype)
+    deltas = rewards + gamma * next_values - values
 
     def backward(carry: jax.Array, xs: tuple[jax.Array, jax.Array]) -> tuple[jax.Array, jax.Array]:
         delta, nd = xs

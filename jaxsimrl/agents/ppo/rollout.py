@@ -5,7 +5,7 @@ the ``seq_len`` steps of each, so the recurrent carry at the start of every chun
 keeping the carry of every step. Env steps never auto-reset: after a step whose episode ended
 (terminated or truncated), the rollout resets that env and flags its next observation as an episode
 start (the network zeroes the carry there). For a truncated step it first evaluates the critic on the
-final (pre-reset) observation and adds ``gamma * V(final obs)`` to the stored reward (see losses.py).
+final (pre-reset) observation and stores it for the GAE bootstrap (see losses.py).
 
 Random numbers are drawn per *global* env index and sliced to this device's envs, so sharding the envs
 over devices does not change any sample.
@@ -53,8 +53,10 @@ class Transition(NamedTuple):
     u: jax.Array
     log_prob: jax.Array
     value: jax.Array
-    reward: jax.Array  # scaled, plus the truncation bootstrap
-    done: jax.Array
+    reward: jax.Array  # scaled by config.reward_scale
+    terminated: jax.Array
+    truncated: jax.Array
+    final_value: jax.Array  # V(pre-reset final obs) where truncated, else 0
 
 
 class EpisodeStats(NamedTuple):
@@ -104,9 +106,9 @@ def _env_step(ctx: RolloutContext, runner: RunnerState, key: jax.Array
     step = jax.vmap(ctx.env.step, in_axes=(0, 0, 0, None))(
         local_keys(ctx, step_key), runner.env_state, action, ctx.env_params)
     done = step.terminated | step.truncated
-    reward = step.reward * ctx.config.reward_scale
-    reward = reward + ctx.config.gamma * step.truncated * _bootstrap_value(ctx, runner, carry, step)
-    transition = Transition(obs, runner.obs, runner.starts, u, log_prob, value[0], reward, done)
+    transition = Transition(obs, runner.obs, runner.starts, u, log_prob, value[0],
+                            step.reward * ctx.config.reward_scale, step.terminated, step.truncated,
+                            _bootstrap_value(ctx, runner, carry, step))
 
     episode_return = runner.episode_return + step.reward
     stats = EpisodeStats(jnp.sum(jnp.where(done, episode_return, 0.0)), jnp.sum(done.astype(jnp.float32)))
@@ -153,7 +155,9 @@ def _bootstrap_value(ctx: RolloutContext, runner: RunnerState, carry: Any, step:
     def value_of_final_obs() -> jax.Array:
         final = observe(ctx, runner.normalizer, step.obs)
         no_start = jnp.zeros_like(runner.starts)
-        return ctx.apply_fn(runner.params, carry, final[None], no_start[None])[3][0]
+        value = ctx.apply_fn(runner.params, carry, final[None], no_start[None])[3][0]
+        return jnp.where(step.truncated, value, 0.0)
 
+    # under vmap/shard_map this stays a real branch: the extra forward pass runs only when needed
     return jax.lax.cond(jnp.any(step.truncated), value_of_final_obs,
                         lambda: jnp.zeros(step.reward.shape, jnp.float32))

@@ -1,0 +1,139 @@
+"""Unit tests of the PPO building blocks: GAE, action mapping, log-probs, LSTM resets, normaliser."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxsimrl.agents.ppo import PPOConfig, make_policy, make_train
+from jaxsimrl.agents.ppo import normalizer as norm
+from jaxsimrl.agents.ppo.distribution import to_box
+from jaxsimrl.agents.ppo.learner import _minibatch
+from jaxsimrl.agents.ppo.losses import Batch, compute_gae, ppo_loss
+from jaxsimrl.agents.ppo.networks import initial_carry, make_network
+from jaxsimrl.agents.ppo.rollout import collect
+from jaxsimrl.envs.lorenz import Lorenz
+
+TINY = PPOConfig(num_envs=2, steps_per_update=80, total_steps=160, seq_len=10, num_minibatches=2,
+                 lstm_size=16, hidden_sizes=(8, 8), updates_per_chunk=1)
+
+
+def test_gae_matches_hand_computation_with_termination_and_truncation():
+    gamma, lam = 0.9, 0.8
+    rewards = jnp.array([1.0, 2.0, 3.0, 4.0])
+    values = jnp.array([10.0, 20.0, 30.0, 40.0])
+    terminated = jnp.array([False, True, False, False])
+    truncated = jnp.array([False, False, True, False])
+    final_values = jnp.array([0.0, 0.0, 100.0, 0.0])
+    adv, targets = compute_gae(rewards, values, terminated, truncated, final_values, jnp.float32(50.0),
+                               gamma, lam)
+    # t=3: 4 + .9*50 - 40 = 9;  t=2 (truncated, bootstrap 100): 3 + 90 - 30 = 63;
+    # t=1 (terminated, no bootstrap): 2 - 20 = -18;  t=0: 1 + .9*20 - 10 + .9*.8*(-18) = -3.96
+    np.testing.assert_allclose(adv, [-3.96, -18.0, 63.0, 9.0], rtol=1e-6)
+    np.testing.assert_allclose(targets, np.asarray(adv) + np.asarray(values), rtol=1e-6)
+
+
+def test_action_mapping_stays_inside_the_box_and_maps_zero_to_the_centre():
+    low, high = jnp.array([-1.0, -2.0, -0.25]), jnp.array([1.0, 2.0, 0.25])
+    u = jax.random.normal(jax.random.PRNGKey(0), (1000, 3)) * 20.0
+    actions = to_box(u, low, high)
+    assert bool(jnp.all(actions >= low)) and bool(jnp.all(actions <= high))
+    assert float(jnp.max(jnp.abs(actions))) > 0.24  # it does reach towards the edges
+    np.testing.assert_allclose(to_box(jnp.zeros(3), low, high), (low + high) / 2, atol=1e-7)
+
+
+def _rollout(config: PPOConfig, env_params=None):
+    trainer = make_train(config, Lorenz(), env_params)
+    state = trainer.init(jax.random.PRNGKey(3))
+    ctx = trainer.ctx._replace(axis_name=None)  # one device, no shard_map around it
+    new_state, transitions, carries, _ = jax.jit(lambda s: collect(ctx, s, jax.random.PRNGKey(4)))(state)
+    return trainer, state, new_state, transitions, carries
+
+
+@pytest.mark.parametrize("network", ["lstm", "mlp"])
+def test_rollout_log_probs_equal_the_update_recomputation(network):
+    config = PPOConfig(**{**TINY.to_dict(), "hidden_sizes": (8, 8), "network": network})
+    trainer, state, _, tr, carries = _rollout(config)
+    box = trainer.env.action_space(trainer.env_params)
+    actions = to_box(tr.u, box.low, box.high)
+    assert bool(jnp.all(actions >= box.low)) and bool(jnp.all(actions <= box.high))
+    zeros = jnp.zeros_like(tr.value)
+    data = Batch(tr.obs, tr.starts, tr.u, tr.log_prob, tr.value, zeros, zeros, carries)
+    batch = _minibatch(data, jnp.arange(config.chunks_per_env))
+    _, mean, log_std, value = trainer.network.apply(state.params, batch.carry, batch.obs, batch.starts)
+    recomputed = jax.vmap(jax.vmap(lambda m, u: _log_prob(m, log_std, u)))(mean, batch.u)
+    np.testing.assert_allclose(recomputed, batch.log_prob, atol=1e-5)
+    np.testing.assert_allclose(value, batch.value, atol=1e-5)
+    # and the loss sees ratio 1 everywhere: zero KL, nothing clipped
+    _, metrics = ppo_loss(state.params, trainer.network.apply, batch, config)
+    assert abs(float(metrics["approx_kl"])) < 1e-6 and float(metrics["clip_fraction"]) == 0.0
+
+
+def _log_prob(mean, log_std, u):
+    from jaxsimrl.agents.ppo.distribution import gaussian
+
+    return gaussian(mean, log_std).log_prob(u)
+
+
+def test_truncated_steps_store_a_bootstrap_value_and_restart_the_episode():
+    config = PPOConfig(**{**TINY.to_dict(), "hidden_sizes": (8, 8), "steps_per_update": 120})
+    params = Lorenz().default_params().replace(max_steps=30)
+    _, _, _, tr, _ = _rollout(config, params)
+    flat = lambda x: np.asarray(x).reshape((-1,) + x.shape[2:])  # noqa: E731
+    truncated, final_value, starts = flat(tr.truncated), flat(tr.final_value), flat(tr.starts)
+    t_idx = np.nonzero(truncated[:, 0])[0]
+    assert list(t_idx) == [29, 59]  # every 30 steps (60 per env per update), never terminated
+    assert not flat(tr.terminated).any()
+    assert np.all(final_value[~truncated] == 0.0) and np.all(final_value[truncated] != 0.0)
+    # the reset observation after each truncation starts a new episode (step 0 starts the first)
+    assert list(np.nonzero(starts[:, 0])[0]) == [0, 30] and starts.sum() == 4
+
+
+def test_lstm_output_after_reset_equals_output_from_a_fresh_carry():
+    config = TINY
+    net = make_network(config, 3)
+    obs = jax.random.normal(jax.random.PRNGKey(0), (6, 2, 6))
+    starts = jnp.array([[False, False], [False, False], [False, False], [True, True],
+                        [False, False], [False, False]])
+    params = net.init(jax.random.PRNGKey(1), initial_carry(config, 2), obs, starts)
+    warm = jax.tree.map(lambda c: c + 0.7, initial_carry(config, 2))
+    _, mean, _, value = net.apply(params, warm, obs, starts)
+    _, fresh_mean, _, fresh_value = net.apply(params, initial_carry(config, 2), obs[3:], starts[3:])
+    np.testing.assert_allclose(mean[3:], fresh_mean, atol=1e-6)
+    np.testing.assert_allclose(value[3:], fresh_value, atol=1e-6)
+    _, no_reset_mean, _, _ = net.apply(params, warm, obs, jnp.zeros_like(starts))
+    assert not np.allclose(no_reset_mean[3:], fresh_mean, atol=1e-4)  # the reset did something
+
+
+def test_policy_act_jits_and_vmaps_and_done_resets_the_carry():
+    env = Lorenz()
+    state = make_train(TINY, env).init(jax.random.PRNGKey(0))
+    policy = make_policy(TINY, env, env.default_params())
+    obs = jax.random.normal(jax.random.PRNGKey(1), (4, 3, 6)) * 20
+    carry = jax.tree.map(lambda c: c + 0.5, policy.initial_carry(3))
+    done = jnp.array([True, False, True])
+    act = jax.jit(policy.act, static_argnames="deterministic")
+    batched = jax.vmap(lambda o, k: act(state, o, carry, done, k, deterministic=False))
+    actions, carries = batched(obs, jax.random.split(jax.random.PRNGKey(2), 4))
+    single, _ = act(state, obs[1], carry, done, jax.random.split(jax.random.PRNGKey(2), 4)[1],
+                    deterministic=False)
+    np.testing.assert_allclose(actions[1], single, atol=1e-6)
+    box = env.action_space(env.default_params())
+    assert bool(jnp.all(actions >= box.low)) and bool(jnp.all(actions <= box.high))
+    fresh, _ = act(state, obs[0], policy.initial_carry(3), done, None)
+    warm, _ = act(state, obs[0], carry, done, None)
+    np.testing.assert_allclose(warm[done], fresh[done], atol=1e-6)  # done rows ignore the old carry
+    assert not np.allclose(warm[~done], fresh[~done], atol=1e-6)
+
+
+def test_normalizer_merge_equals_statistics_of_the_union():
+    x = jax.random.normal(jax.random.PRNGKey(0), (300, 4)) * 3 + 5
+    merged = norm.update(norm.update(norm.init_normalizer(4), x[:100]), x[100:])
+    np.testing.assert_allclose(merged.mean, x.mean(0), rtol=1e-5)
+    np.testing.assert_allclose(merged.m2 / merged.count, x.var(0), rtol=1e-4)
+    z = norm.normalize(merged, x, clip=10.0)
+    np.testing.assert_allclose(z.mean(0), 0.0, atol=1e-4)
+    np.testing.assert_allclose(z.std(0), 1.0, atol=1e-3)
+    assert float(norm.normalize(norm.init_normalizer(4), x, 100.0)[0, 0]) == float(x[0, 0])
