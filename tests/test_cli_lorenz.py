@@ -103,10 +103,19 @@ def test_help_documents_every_flag(capsys):
     code, out, _ = run_cli(["train-lorenz", "--help"], capsys)
     assert code == 0
     flags = ["--" + name.replace("_", "-") for name, _, _ in KNOBS]
-    for flag in [*flags, "--network", "--seed", "--out", "--config", "--resume"]:
+    for flag in [*flags, "--network", "--seed", "--out", "--config", "--resume", "--print-config"]:
         assert flag in out
     code, out, _ = run_cli(["eval-lorenz", "--help"], capsys)
     assert code == 0 and all(flag in out for flag in ("--episodes", "--stochastic", "--seed", "RUN_DIR"))
+
+
+def test_print_config_shows_every_resolved_field_without_training(tmp_path, capsys):
+    config = write_json(tmp_path / "cfg.json", {"gamma": 0.9, "seq_len": 100})
+    code, out, _ = run_cli(["train-lorenz", "--print-config", "--config", str(config), "--gamma", "0.97",
+                            "--out", str(tmp_path / "run")], capsys)
+    printed = json.loads(out)
+    assert code == 0 and printed == {**PPOConfig().to_dict(), "gamma": 0.97, "seq_len": 100}
+    assert not (tmp_path / "run").exists()
 
 
 @pytest.fixture(scope="module")

@@ -55,8 +55,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     train.add_argument("--config", metavar="FILE.json", help="a PPOConfig as a JSON object, e.g. "
                        "experiments/lorenz_paper.json (unknown keys are an error)")
     for name, kind, text in KNOBS:
-        train.add_argument("--" + name.replace("_", "-"), dest=name, type=kind, metavar="N" if kind is
-                           positive_int else "X", help=text + " (default: from --config, else PPOConfig)")
+        metavar = "N" if kind is positive_int else "X"
+        train.add_argument("--" + name.replace("_", "-"), dest=name, type=kind, metavar=metavar,
+                           help=text + " (default: from --config, else PPOConfig's; see --print-config)")
     train.add_argument("--network", choices=NETWORKS, help="lstm (the paper's: 2x64 tanh then LSTM 256) "
                        "or mlp (2x64 tanh only) (default: lstm)")
     train.add_argument("--seed", type=_seed, help="PRNG seed; the same seed and config give the same "
@@ -65,6 +66,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                        "(default: runs/lorenz-<UTC timestamp>)")
     train.add_argument("--resume", metavar="RUN_DIR", help="continue RUN_DIR from its last checkpoint with "
                        "its saved config; only --total-steps may be given (to raise it)")
+    train.add_argument("--print-config", action="store_true", help="print the resolved PPOConfig as JSON "
+                       "(every field, defaults included) and exit without training")
     train.set_defaults(func=run_train)
 
     evaluate = subparsers.add_parser(
@@ -109,6 +112,9 @@ class TrainPlan:
 def run_train(args: argparse.Namespace, on_chunk: Any = None) -> int:
     """Entry point of train-lorenz; ``on_chunk(updates_done)`` is a test hook (see runs.training.train)."""
     plan = _resume_plan(args) if args.resume else _fresh_plan(args)
+    if args.print_config:
+        sys.stdout.write(json.dumps(plan.config.to_dict(), indent=2) + "\n")
+        return 0
     from jaxsimrl.runs.checkpoint import Checkpoints
     from jaxsimrl.runs.progress import TrainingProgress
     from jaxsimrl.runs.run_dir import RunDir

@@ -37,7 +37,7 @@ class TrainingProgress:
     def __enter__(self) -> TrainingProgress:
         if self.live:
             self._progress = Progress(
-                TextColumn("[bold]training"),
+                TextColumn("[bold]{task.description}"),
                 BarColumn(),
                 MofNCompleteColumn(),
                 TextColumn("env steps  {task.fields[rate]} steps/s  mean return {task.fields[ret]}"),
@@ -46,8 +46,9 @@ class TrainingProgress:
                 console=self.console,
             )
             self._progress.start()
-            self._task = self._progress.add_task("train", total=self.total_steps, completed=self.done_steps,
-                                                 rate="-", ret="-")
+            # The first chunk includes JAX's compilation, which can take a while: say so.
+            self._task = self._progress.add_task("compiling + first chunk", total=self.total_steps,
+                                                 completed=self.done_steps, rate="-", ret="-")
         return self
 
     def __exit__(self, *exc: object) -> None:
@@ -61,7 +62,7 @@ class TrainingProgress:
         rate = f"{steps_per_s:,.0f}"
         ret = "-" if not math.isfinite(mean_return) else f"{mean_return:,.1f}"
         if self._progress is not None:
-            self._progress.update(self._task, completed=env_steps, rate=rate, ret=ret)
+            self._progress.update(self._task, description="training", completed=env_steps, rate=rate, ret=ret)
         else:
             steps = f"{env_steps:,}/{self.total_steps:,}"
             self.print(f"update {update}/{num_updates}  env steps {steps}  {rate} steps/s  mean return {ret}")

@@ -18,6 +18,7 @@ import csv
 import io
 import json
 import math
+import statistics
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -154,6 +155,8 @@ def summarise(rows: Sequence[Row], extra: dict[str, Any] | None = None) -> dict[
         "updates": int(rows[-1]["update"]) if rows else 0,
         "wall_time_s": wall,
         "steps_per_s": total_steps / wall if wall > 0 else math.nan,
+        # Per-chunk rates without the first chunk's compilation dominating: the steady-state speed.
+        "median_chunk_steps_per_s": statistics.median(r["steps_per_s"] for r in rows) if rows else math.nan,
         "final_mean_return": final,
         "final_return_episodes": episodes,
         "final_return_updates": [int(r["update"]) for r in window],
