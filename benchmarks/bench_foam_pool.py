@@ -58,15 +58,18 @@ def main() -> None:
     parser.add_argument("--policy", choices=("random", "constant"), default="random")
     parser.add_argument("--simple-variant", choices=("SIMPLE", "SIMPLEC"), default="SIMPLEC")
     parser.add_argument("--max-iterations", type=int, default=4000)
+    parser.add_argument("--relax-k-omega", type=float, default=None,
+                        help="fixed k/omega factor (default: follow alpha_u)")
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
     cfg = FoamEnvConfig(mesh_scale=args.mesh_scale, simple_variant=args.simple_variant,
-                        max_iterations=args.max_iterations).validate()
+                        max_iterations=args.max_iterations, relax_k_omega=args.relax_k_omega).validate()
     machine = platform.processor() or platform.machine()
     print(f"# {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {machine}, {os.cpu_count()} cores, "
           f"load before {os.getloadavg()}")
     print(f"# mesh_scale={args.mesh_scale} num_envs={args.num_envs} episodes={args.episodes} "
-          f"policy={args.policy} variant={args.simple_variant} seed={args.seed}")
+          f"policy={args.policy} variant={args.simple_variant} relax_k_omega={args.relax_k_omega} "
+          f"max_iterations={args.max_iterations} seed={args.seed}")
     print("| pool | episodes | wall s | episodes/hour | mean iterations | iterations/s | outcomes |")
     print("|---|---|---|---|---|---|---|")
     for pool in args.pools:

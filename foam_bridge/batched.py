@@ -29,12 +29,12 @@ import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 
-from foam_bridge.backends import WORKER_DIED, Reply, Request, make_backend
+from foam_bridge.backends import BAD_INPUT_ERRORS, WORKER_DIED, Reply, Request, make_backend
 from foam_bridge.config import FoamEnvConfig
 from foam_bridge.env import FoamEnv, seed_from_key
 from jaxsimrl.envs.protocol import BoxSpec, Step
@@ -182,7 +182,7 @@ class BatchedFoamEnv:
             tally.residuals = dict(info.get("residuals", tally.residuals))
             tally.episode_return += float(reward)
             return tally.obs, float(reward), bool(term), bool(trunc), info
-        cause = WORKER_DIED if reply.worker_died else f"worker error: {reply.error}"
+        cause = WORKER_DIED if reply.worker_died else f"worker error: {reply.error} ({reply.where})"
         reward = failure_reward(self.cfg, tally.iterations)
         tally.episode_return += reward
         return tally.obs, reward, True, False, self._failure_info(tally, cause)
@@ -247,26 +247,14 @@ class BatchedFoamEnv:
 def _reset_error(reply: Reply) -> Exception:
     """A reset that failed for a reason other than a (first) worker death: bad input or a broken setup."""
     message = f"env {reply.env_id}: reset failed: {reply.error}"
-    if reply.error.startswith(("ValueError", "CaseError", "OpenFOAMNotFoundError")):
-        return ValueError(message)
-    return RuntimeError(message)
+    return ValueError(message) if reply.kind in BAD_INPUT_ERRORS else RuntimeError(message)
 
 
-class BatchedState(tuple):
-    """Host-side state handle of the protocol form: the episode counter and iterations of every env."""
+class BatchedState(NamedTuple):
+    """Host-side state handle of the protocol form: episodes ended and iterations, per env (int32 [N])."""
 
-    __slots__ = ()
-
-    def __new__(cls, episode: np.ndarray, iterations: np.ndarray) -> BatchedState:
-        return super().__new__(cls, (episode, iterations))
-
-    @property
-    def episode(self) -> np.ndarray:
-        return self[0]
-
-    @property
-    def iterations(self) -> np.ndarray:
-        return self[1]
+    episode: np.ndarray
+    iterations: np.ndarray
 
 
 class BatchedFoamProtocol:

@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from foam_bridge.backends import WORKER_DIED, Reply, Request, make_backend
+from foam_bridge.backends import BAD_INPUT_ERRORS, WORKER_DIED, Reply, Request, make_backend
 from foam_bridge.config import FoamEnvConfig
 from jaxsimrl.runs.atomic import atomic_write_bytes, atomic_write_text
 
@@ -150,8 +150,8 @@ def _cause(reply: Reply) -> str:
 
 def _raise_if_bad_input(reply: Reply) -> None:
     """A case or config the env rejects would fail every cell alike: stop with its one-line message."""
-    if reply.error.startswith(("ValueError", "CaseError", "OpenFOAMNotFoundError")):
-        raise ValueError(reply.error.split(" at ")[0])
+    if reply.kind in BAD_INPUT_ERRORS:
+        raise ValueError(reply.error)
 
 
 def write_grid_csv(cells: Sequence[GridCell], path: str | os.PathLike[str]) -> None:

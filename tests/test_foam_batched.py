@@ -6,6 +6,7 @@ cap, so episodes end within a few steps.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import shutil
 import signal
@@ -19,6 +20,7 @@ from foam_bridge.backends import WORKER_DIED, env_dir, validate_pool
 from foam_bridge.backends.reaper import kill_processes_under, processes_under
 from foam_bridge.batched import BatchedFoamEnv, failure_reward
 from foam_bridge.config import FoamEnvConfig
+from foam_bridge.errors import OpenFOAMNotFoundError
 
 HAVE_OPENFOAM = shutil.which("simpleFoam") is not None
 # Coarse mesh, 300-iteration cap: an episode is at most 3 steps of 100 iterations.
@@ -68,6 +70,17 @@ def test_reaper_kills_the_process_group_under_a_directory(tmp_path):
             p.wait()
 
 
+def test_missing_openfoam_or_case_fails_at_construction(tmp_path):
+    with pytest.raises(OpenFOAMNotFoundError, match="install"):
+        BatchedFoamEnv(dataclasses.replace(COARSE, openfoam_path=str(tmp_path)), 2, work_dir=tmp_path)
+    if HAVE_OPENFOAM:
+        missing = dataclasses.replace(COARSE, case_dir=tmp_path / "no_such_case")
+        with pytest.raises(ValueError, match="no_such_case"):
+            BatchedFoamEnv(missing, 2, work_dir=tmp_path)
+    assert list(tmp_path.iterdir()) == []
+
+
+@needs_openfoam
 def test_bad_actions_and_backend_are_one_line_value_errors(tmp_path):
     with pytest.raises(ValueError, match="backend"):
         BatchedFoamEnv(COARSE, 2, backend="mpi", work_dir=tmp_path)

@@ -9,12 +9,13 @@ from pathlib import Path
 from typing import Any
 
 from foam_bridge.backends.base import WORKER_DIED, Backend, validate_pool
-from foam_bridge.backends.worker import Reply, Request, env_dir
+from foam_bridge.backends.worker import BAD_INPUT_ERRORS, Reply, Request, env_dir
 
 BACKENDS = ("local", "ray")
 
 __all__ = [
-    "BACKENDS", "WORKER_DIED", "Backend", "Reply", "Request", "env_dir", "make_backend", "validate_pool",
+    "BACKENDS", "BAD_INPUT_ERRORS", "WORKER_DIED", "Backend", "Reply", "Request", "env_dir", "make_backend",
+    "validate_pool",
 ]
 
 

@@ -21,6 +21,19 @@ from foam_bridge.backends.worker import EnvHost, Reply, Request
 JOIN_TIMEOUT_S = 30.0
 
 
+def preflight(cfg: Any) -> None:
+    """Fail now, in one line, on what would fail every env later: no OpenFOAM, a broken user case.
+
+    Only for the local backend: Ray nodes may have OpenFOAM and the case where the driver has not.
+    """
+    from foam_bridge.case import check_case_files
+    from foam_bridge.openfoam import find_openfoam
+
+    find_openfoam(cfg.openfoam_path)
+    if cfg.case_dir is not None:
+        check_case_files(Path(cfg.case_dir), cfg, need_mesh=False)
+
+
 def _serve(conn: Connection, cfg: Any, work_dir: Path) -> None:
     """Worker main loop."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the driver's to handle; it closes us
@@ -45,6 +58,7 @@ class LocalBackend(Backend):
 
     def __init__(self, cfg: Any, num_envs: int, pool: int, work_dir: Path) -> None:
         super().__init__(cfg, num_envs, pool)
+        preflight(cfg)
         self.work_dir = Path(work_dir)
         self._ctx = mp.get_context("spawn")
         self._procs: list[Any] = [None] * pool

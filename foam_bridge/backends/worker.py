@@ -20,6 +20,8 @@ from typing import Any, NamedTuple
 from foam_bridge.backends.reaper import kill_processes_under
 
 METHODS = ("reset", "step", "close")
+#: Exceptions that mean the config or case is unusable (every env would fail alike): not retried.
+BAD_INPUT_ERRORS = ("ValueError", "CaseError", "OpenFOAMNotFoundError")
 
 
 class Request(NamedTuple):
@@ -31,13 +33,19 @@ class Request(NamedTuple):
 
 
 class Reply(NamedTuple):
-    """The answer to one Request. ``ok`` False: ``error`` says why; ``worker_died`` marks a lost worker."""
+    """The answer to one Request.
+
+    ``ok`` False: ``error`` is "ExceptionType: message" (``kind`` the type's name, ``where`` the
+    raising file:line), or "worker died" with ``worker_died`` set.
+    """
 
     env_id: int
     ok: bool
     value: Any = None
     error: str = ""
     worker_died: bool = False
+    kind: str = ""
+    where: str = ""
 
 
 def env_dir(work_dir: Path, env_id: int) -> Path:
@@ -75,8 +83,9 @@ class EnvHost:
             return Reply(request.env_id, True, value)
         except Exception as err:  # noqa: BLE001 - reported to the driver, which owns the policy
             last = traceback.extract_tb(err.__traceback__)[-1:]
-            where = f" at {last[0].filename}:{last[0].lineno}" if last else ""
-            return Reply(request.env_id, False, error=f"{type(err).__name__}: {err}{where}")
+            where = f"{last[0].filename}:{last[0].lineno}" if last else ""
+            kind = type(err).__name__
+            return Reply(request.env_id, False, error=f"{kind}: {err}", kind=kind, where=where)
 
     def handle_batch(self, requests: list[Request]) -> list[Reply]:
         """Run requests in order (envs of one worker share its core, so sequential is right)."""
