@@ -7,7 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxsimrl.agents.ppo import PPOConfig, make_policy, make_train
+from jaxsimrl.agents.ppo import PolicyParams, PPOConfig, make_policy, make_train
 from jaxsimrl.agents.ppo import normalizer as norm
 from jaxsimrl.agents.ppo.distribution import to_box
 from jaxsimrl.agents.ppo.learner import _minibatch
@@ -16,8 +16,9 @@ from jaxsimrl.agents.ppo.networks import initial_carry, make_network
 from jaxsimrl.agents.ppo.rollout import collect
 from jaxsimrl.envs.lorenz import Lorenz
 
-TINY = PPOConfig(num_envs=2, steps_per_update=80, total_steps=160, seq_len=10, num_minibatches=2,
+TINY = PPOConfig(num_envs=2, steps_per_update=120, total_steps=240, seq_len=10, num_minibatches=2,
                  lstm_size=16, hidden_sizes=(8, 8), updates_per_chunk=1)
+TRUNCATING = Lorenz().default_params().replace(max_steps=30)  # 60 steps per env: 2 truncations each
 
 
 def test_gae_matches_hand_computation_with_termination_and_truncation():
@@ -44,7 +45,7 @@ def test_action_mapping_stays_inside_the_box_and_maps_zero_to_the_centre():
     np.testing.assert_allclose(to_box(jnp.zeros(3), low, high), (low + high) / 2, atol=1e-7)
 
 
-def _rollout(config: PPOConfig, env_params=None):
+def _rollout(config: PPOConfig, env_params):
     trainer = make_train(config, Lorenz(), env_params)
     state = trainer.init(jax.random.PRNGKey(3))
     ctx = trainer.ctx._replace(axis_name=None)  # one device, no shard_map around it
@@ -52,22 +53,33 @@ def _rollout(config: PPOConfig, env_params=None):
     return trainer, state, new_state, transitions, carries
 
 
-@pytest.mark.parametrize("network", ["lstm", "mlp"])
-def test_rollout_log_probs_equal_the_update_recomputation(network):
-    config = PPOConfig(**{**TINY.to_dict(), "hidden_sizes": (8, 8), "network": network})
-    trainer, state, _, tr, carries = _rollout(config)
+@pytest.fixture(scope="module", params=["lstm", "mlp"])
+def rollout(request):
+    """One truncating rollout per network type, shared by the tests below."""
+    return _rollout(PPOConfig(**{**TINY.to_dict(), "hidden_sizes": (8, 8), "network": request.param}),
+                    TRUNCATING)
+
+
+def test_rollout_log_probs_equal_the_update_recomputation(rollout):
+    trainer, state, _, tr, carries = rollout
+    config = trainer.config
     box = trainer.env.action_space(trainer.env_params)
     actions = to_box(tr.u, box.low, box.high)
     assert bool(jnp.all(actions >= box.low)) and bool(jnp.all(actions <= box.high))
     zeros = jnp.zeros_like(tr.value)
     data = Batch(tr.obs, tr.starts, tr.u, tr.log_prob, tr.value, zeros, zeros, carries)
     batch = _minibatch(data, jnp.arange(config.chunks_per_env))
-    _, mean, log_std, value = trainer.network.apply(state.params, batch.carry, batch.obs, batch.starts)
-    recomputed = jax.vmap(jax.vmap(lambda m, u: _log_prob(m, log_std, u)))(mean, batch.u)
+
+    @jax.jit
+    def recompute(params, batch):
+        _, mean, log_std, value = trainer.network.apply(params, batch.carry, batch.obs, batch.starts)
+        log_prob = jax.vmap(jax.vmap(lambda m, u: _log_prob(m, log_std, u)))(mean, batch.u)
+        return log_prob, value, ppo_loss(params, trainer.network.apply, batch, config)[1]
+
+    recomputed, value, metrics = recompute(state.params, batch)
     np.testing.assert_allclose(recomputed, batch.log_prob, atol=1e-5)
     np.testing.assert_allclose(value, batch.value, atol=1e-5)
     # and the loss sees ratio 1 everywhere: zero KL, nothing clipped
-    _, metrics = ppo_loss(state.params, trainer.network.apply, batch, config)
     assert abs(float(metrics["approx_kl"])) < 1e-6 and float(metrics["clip_fraction"]) == 0.0
 
 
@@ -77,10 +89,8 @@ def _log_prob(mean, log_std, u):
     return gaussian(mean, log_std).log_prob(u)
 
 
-def test_truncated_steps_store_a_bootstrap_value_and_restart_the_episode():
-    config = PPOConfig(**{**TINY.to_dict(), "hidden_sizes": (8, 8), "steps_per_update": 120})
-    params = Lorenz().default_params().replace(max_steps=30)
-    _, _, _, tr, _ = _rollout(config, params)
+def test_truncated_steps_store_a_bootstrap_value_and_restart_the_episode(rollout):
+    tr = rollout[3]
     flat = lambda x: np.asarray(x).reshape((-1,) + x.shape[2:])  # noqa: E731
     truncated, final_value, starts = flat(tr.truncated), flat(tr.final_value), flat(tr.starts)
     t_idx = np.nonzero(truncated[:, 0])[0]
@@ -97,22 +107,24 @@ def test_lstm_output_after_reset_equals_output_from_a_fresh_carry():
     obs = jax.random.normal(jax.random.PRNGKey(0), (6, 2, 6))
     starts = jnp.array([[False, False], [False, False], [False, False], [True, True],
                         [False, False], [False, False]])
-    params = net.init(jax.random.PRNGKey(1), initial_carry(config, 2), obs, starts)
+    apply = jax.jit(net.apply)
+    params = jax.jit(net.init)(jax.random.PRNGKey(1), initial_carry(config, 2), obs, starts)
     warm = jax.tree.map(lambda c: c + 0.7, initial_carry(config, 2))
-    _, mean, _, value = net.apply(params, warm, obs, starts)
-    _, fresh_mean, _, fresh_value = net.apply(params, initial_carry(config, 2), obs[3:], starts[3:])
+    _, mean, _, value = apply(params, warm, obs, starts)
+    _, fresh_mean, _, fresh_value = apply(params, initial_carry(config, 2), obs[3:], starts[3:])
     np.testing.assert_allclose(mean[3:], fresh_mean, atol=1e-6)
     np.testing.assert_allclose(value[3:], fresh_value, atol=1e-6)
-    _, no_reset_mean, _, _ = net.apply(params, warm, obs, jnp.zeros_like(starts))
+    _, no_reset_mean, _, _ = apply(params, warm, obs, jnp.zeros_like(starts))
     assert not np.allclose(no_reset_mean[3:], fresh_mean, atol=1e-4)  # the reset did something
 
 
 def test_policy_act_jits_and_vmaps_and_done_resets_the_carry():
     env = Lorenz()
-    state = make_train(TINY, env).init(jax.random.PRNGKey(0))
     policy = make_policy(TINY, env, env.default_params())
     obs = jax.random.normal(jax.random.PRNGKey(1), (4, 3, 6)) * 20
     carry = jax.tree.map(lambda c: c + 0.5, policy.initial_carry(3))
+    params = jax.jit(policy.network.init)(jax.random.PRNGKey(0), carry, obs[:1], jnp.zeros((1, 3), bool))
+    state = PolicyParams(params, norm.update(norm.init_normalizer(6), obs))
     done = jnp.array([True, False, True])
     act = jax.jit(policy.act, static_argnames="deterministic")
     batched = jax.vmap(lambda o, k: act(state, o, carry, done, k, deterministic=False))
