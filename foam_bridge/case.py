@@ -23,6 +23,8 @@ re-reads modified files in ``Time::run()``, so simpleFoam re-reads fvSolution ri
 opens the FIFO and blocks until the bridge writes the new relaxationFactors into it: the solver stops
 exactly between iterations K and K+1 and the new factors govern iteration K+1 onwards (measured, and
 tested in tests/test_foam_env.py). The very first read (at start-up) takes the episode's first action.
+(Why not a ``systemCall`` function object blocking on a FIFO: v1912 refuses system calls when run as
+root, which containers and CI usually are; and the factors would still have to travel by a file.)
 
 Inlet turbulence (the paper's values: intensity I = 6.1e-4, nu_t/nu = 0.009, nu = 1.56e-5 m^2/s):
 ``k = 1.5 (I U)^2`` and ``omega = k / nu_t`` with ``nu_t = 0.009 nu``. (The tutorial's omega, 181728,

@@ -13,15 +13,15 @@ MDP (Pawar & Maulik, "Solver convergence acceleration"):
   ``crashed`` (solver died, broken case), ``diverged`` (NaN/Inf or residual above the threshold),
   ``hung`` (the step watchdog fired).
 
-One simpleFoam process runs per episode. It pauses itself after every ``interval`` iterations inside a
-``systemCall`` function object that blocks on a FIFO (see foam_bridge.solver); while it is paused the
-bridge writes the new fvSolution atomically and releases it. When factors take effect: OpenFOAM's
-``Time::run()`` re-reads modified files *before* it executes function objects, so factors written at
-the pause after iteration K are read after iteration K+1: iteration K+1 still runs with the previous
-action and the new action governs iterations K+2 .. K+interval+1. The first action of an episode is
-written before the solver starts and governs iterations 1 .. interval+1. This lag of one iteration is
-deterministic and tested (tests/test_foam_env.py); constant factors are unaffected (chunked ==
-uninterrupted).
+One simpleFoam process runs per episode (no restarts: bit-identical to an uninterrupted run with
+the same factors, tested). It pauses itself exactly between iterations K and K+1 for every K that is a
+multiple of ``interval``: a function object touches fvSolution after iteration K, OpenFOAM v1912 re-reads
+modified files right after executing function objects (before iteration K+1 starts), and fvSolution
+#includes a FIFO from which the solver reads the relaxation factors; it blocks there until the bridge
+writes them (foam_bridge.case, foam_bridge.solver). So the action given at K governs iterations
+K+1 .. K+interval, exactly as in the paper's restart-based MDP (tested: the residuals of iteration K+1
+already change with the new factors). The first action of an episode is read at solver start-up.
+The state of iteration K is printed by stock function objects before the pause, in full precision.
 """
 
 from __future__ import annotations
@@ -86,21 +86,19 @@ class FoamCaseEnv:
         foam_case.build_base_case(cfg, self.base, self.openfoam)
         self._rng = np.random.default_rng(env_id)
         self._solver: FoamSolver | None = None
+        self._episode: dict[str, Any] = {}
         self._done = True
         self._closed = False
 
     @property
     def observation_space_spec(self) -> BoxSpec:
         """Box of the observation: the scaled state (>= 0) then the log10 residual features."""
-        n = self.cfg.observation_size
-        low = np.array([0.0] + [-np.inf] * (n - 1), dtype=np.float32)
-        return BoxSpec(low=low, high=np.full(n, np.inf, dtype=np.float32), shape=(n,))
+        return observation_spec(self.cfg)
 
     @property
     def action_space_spec(self) -> BoxSpec:
         """Box of (alpha_u, alpha_p): ``[action_low, action_high]``."""
-        return BoxSpec(low=np.asarray(self.cfg.action_low, dtype=np.float32),
-                       high=np.asarray(self.cfg.action_high, dtype=np.float32), shape=(2,))
+        return action_spec(self.cfg)
 
     def reset(
         self, seed: int | None = None, options: dict[str, Any] | None = None
@@ -123,7 +121,7 @@ class FoamCaseEnv:
             [np.zeros(len(self.cfg.convergence))] * self.cfg.residual_features,
             maxlen=self.cfg.residual_features or None)
         self._episode = {"env_id": self.env_id, "seed": seed, "inlet_velocity": velocity, "actions": [],
-                         "return": 0.0, "steps": 0, "started": time.monotonic()}
+                         "return": 0.0, "steps": 0, "solver_idle_s": 0.0, "started": time.monotonic()}
         self._done = False
         inlet, cells = foam_case.initial_state(self.case_dir, self.cfg)
         self._obs = self._observation(inlet, cells)
@@ -170,6 +168,11 @@ class FoamCaseEnv:
     def parser(self) -> LogParser:
         """The log parser of the current (or last) episode: residual history, state, counters."""
         return self._parser
+
+    @property
+    def solver_idle_s(self) -> float:
+        """Seconds the current episode's solver has waited on the bridge (see FoamSolver.idle_s)."""
+        return 0.0 if self._solver is None else self._solver.idle_s
 
     @property
     def solver_pgid(self) -> int | None:
@@ -258,6 +261,7 @@ class FoamCaseEnv:
 
     def _stop_solver(self) -> None:
         if self._solver is not None:
+            self._episode["solver_idle_s"] = self._solver.idle_s
             self._solver.kill()
             self._solver = None
 
@@ -303,18 +307,28 @@ class FoamEnv:
         return Step(obs, new_state, np.float32(reward), terminated, truncated, info)
 
     def observation_space(self, params: FoamEnvConfig) -> BoxSpec:
-        n = params.observation_size
-        return BoxSpec(low=np.array([0.0] + [-np.inf] * (n - 1), dtype=np.float32),
-                       high=np.full(n, np.inf, dtype=np.float32), shape=(n,))
+        return observation_spec(params)
 
     def action_space(self, params: FoamEnvConfig) -> BoxSpec:
-        return BoxSpec(low=np.asarray(params.action_low, dtype=np.float32),
-                       high=np.asarray(params.action_high, dtype=np.float32), shape=(2,))
+        return action_spec(params)
 
     def close(self) -> None:
         if self._env is not None:
             self._env.close()
             self._env = None
+
+
+def observation_spec(cfg: FoamEnvConfig) -> BoxSpec:
+    """Box of the observation (float32): the scaled state (>= 0) then the log10 residual features."""
+    n = cfg.observation_size
+    low = np.array([0.0] + [-np.inf] * (n - 1), dtype=np.float32)
+    return BoxSpec(low=low, high=np.full(n, np.inf, dtype=np.float32), shape=(n,))
+
+
+def action_spec(cfg: FoamEnvConfig) -> BoxSpec:
+    """Box of (alpha_u, alpha_p): ``[action_low, action_high]`` (float32)."""
+    return BoxSpec(low=np.asarray(cfg.action_low, dtype=np.float32),
+                   high=np.asarray(cfg.action_high, dtype=np.float32), shape=(2,))
 
 
 def seed_from_key(key: Any) -> int:
