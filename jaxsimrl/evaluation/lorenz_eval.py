@@ -39,10 +39,15 @@ class Rollout(NamedTuple):
 def initial_states(env: Lorenz, params: LorenzParams, key: jax.Array, episodes: int) -> tuple[jax.Array, Any]:
     """Episode 0 starts from ``params.init_state`` (the paper's (1, 12, 9)); episodes 1..N from the
     env's random initial states drawn with ``key``. Returns batched (obs, env state)."""
-    fixed = env.reset(key, params.replace(random_init=False))
-    keys = jax.random.split(key, episodes)
-    random = jax.vmap(env.reset, in_axes=(0, None))(keys, params.replace(random_init=True))
-    return jax.tree.map(lambda first, rest: jnp.concatenate([first[None], rest]), fixed, random)
+
+    @jax.jit  # one compiled call instead of many small eager ones
+    def draw(key: jax.Array, params: LorenzParams) -> tuple[jax.Array, Any]:
+        fixed = env.reset(key, params.replace(random_init=False))
+        keys = jax.random.split(key, episodes)
+        random = jax.vmap(env.reset, in_axes=(0, None))(keys, params.replace(random_init=True))
+        return jax.tree.map(lambda first, rest: jnp.concatenate([first[None], rest]), fixed, random)
+
+    return draw(key, params)
 
 
 def rollout(env: Lorenz, params: LorenzParams, act: ActFn, carry: Any, start: tuple[jax.Array, Any],
