@@ -51,13 +51,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "train-lorenz", help="train PPO to keep the transiently chaotic Lorenz system chaotic",
         description="Train a PPO agent on the Lorenz chaos-restoration task (Pawar & Maulik, sec. 3.1). "
                     "Without flags it runs the paper's config (PPOConfig defaults: 2 envs, 8000 steps per "
-                    "update, 2e5 steps, 2x64 tanh + LSTM 256). Precedence: defaults < --config < flags.")
+                    "update, 2e5 steps, 2x64 tanh + LSTM 256). A PPO flag left out takes its value from "
+                    "--config, else from PPOConfig's defaults; --print-config shows the resolved values.")
     train.add_argument("--config", metavar="FILE.json", help="a PPOConfig as a JSON object, e.g. "
                        "experiments/lorenz_paper.json (unknown keys are an error)")
     for name, kind, text in KNOBS:
         metavar = "N" if kind is positive_int else "X"
         train.add_argument("--" + name.replace("_", "-"), dest=name, type=kind, metavar=metavar,
-                           help=text + " (default: from --config, else PPOConfig's; see --print-config)")
+                           help=text)
     train.add_argument("--network", choices=NETWORKS, help="lstm (the paper's: 2x64 tanh then LSTM 256) "
                        "or mlp (2x64 tanh only) (default: lstm)")
     train.add_argument("--seed", type=_seed, help="PRNG seed; the same seed and config give the same "
