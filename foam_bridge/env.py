@@ -131,7 +131,7 @@ class FoamCaseEnv:
         """Run ``interval`` SIMPLE iterations with the given factors; see the class docstring."""
         if self._done:
             raise RuntimeError("step() on a finished episode: call reset() first")
-        alpha = np.clip(np.asarray(action, dtype=float).reshape(2), self.cfg.action_low, self.cfg.action_high)
+        alpha = np.clip(_two_factors(action), self.cfg.action_low, self.cfg.action_high)
         self._episode["actions"].append([float(alpha[0]), float(alpha[1])])
         text = foam_case.relaxation_text(self._relaxation, self.cfg, alpha[0], alpha[1])
         outcome, cause = self._classify(self._advance(text))
@@ -316,6 +316,17 @@ class FoamEnv:
         if self._env is not None:
             self._env.close()
             self._env = None
+
+
+def _two_factors(action: Any) -> np.ndarray:
+    """The action as two finite floats; a one-line ValueError otherwise."""
+    try:
+        alpha = np.asarray(action, dtype=float).reshape(2)
+    except (TypeError, ValueError):
+        raise ValueError(f"action: expected (alpha_u, alpha_p), got {action!r}") from None
+    if not np.all(np.isfinite(alpha)):
+        raise ValueError(f"action: expected finite (alpha_u, alpha_p), got {alpha.tolist()}")
+    return alpha
 
 
 def observation_spec(cfg: FoamEnvConfig) -> BoxSpec:
