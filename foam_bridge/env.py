@@ -70,7 +70,8 @@ class FoamCaseEnv:
     or ""), "inlet_velocity", and "episode" (the episode record) on the step that ended the episode.
     Stepping a finished episode raises ``RuntimeError`` (no auto-reset here).
 
-    ``close()`` kills the solver's whole process group and removes the case (unless keep_cases).
+    ``close()`` kills the solver's whole process group and removes the case (unless keep_cases); the
+    env is also a context manager that closes itself.
     """
 
     def __init__(self, cfg: FoamEnvConfig, work_dir: Path | str | None = None, env_id: int = 0) -> None:
@@ -153,6 +154,12 @@ class FoamCaseEnv:
             info["episode"] = self._episode_record(outcome, cause, residuals)
         terminated = outcome == "converged" or outcome in FAILURES
         return self._obs.copy(), reward, terminated, outcome == "truncated", info
+
+    def __enter__(self) -> FoamCaseEnv:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
 
     def close(self) -> None:
         """Kill the solver's process group (no orphans) and remove the case directories."""

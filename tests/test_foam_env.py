@@ -198,12 +198,11 @@ def test_hung_solver_is_killed_by_the_watchdog(tmp_path: Path) -> None:
 
 
 def test_close_leaves_no_process_behind(tmp_path: Path) -> None:
-    env = FoamCaseEnv(_cfg(tmp_path))
-    env.reset(seed=0)
-    env.step(BEST)
-    pgid = env.solver_pgid
-    assert pgid is not None and _group_alive(pgid)
-    env.close()
+    with FoamCaseEnv(_cfg(tmp_path)) as env:
+        env.reset(seed=0)
+        env.step(BEST)
+        pgid = env.solver_pgid
+        assert pgid is not None and _group_alive(pgid)
     assert _wait_group_gone(pgid)
     assert not (tmp_path / "env_0").exists()
 
