@@ -87,6 +87,8 @@ class PPOTrainer:
     # ---- pure functions --------------------------------------------------------------------------
     def _init(self, key: jax.Array) -> RunnerState:
         cfg = self.config
+        if jnp.issubdtype(key.dtype, jax.dtypes.prng_key):
+            key = jax.random.key_data(key)  # keep RunnerState plain uint32 arrays (orbax-saveable)
         net_key, env_key, norm_key, rng = jax.random.split(key, 4)
         obs, env_state = jax.vmap(self.env.reset, in_axes=(0, None))(
             jax.random.split(env_key, cfg.num_envs), self.env_params)
