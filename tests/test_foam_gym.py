@@ -58,6 +58,8 @@ def test_single_env_passes_check_env(tmp_path):
 @needs_openfoam
 def test_vector_env_autoresets_in_the_same_step(tmp_path):
     envs = gym.make_vec(foam_bridge.ENV_ID, num_envs=2, pool=2, seed=0, work_dir=str(tmp_path), **COARSE)
+    # The episode statistics wrapper CleanRL-style trainers use must understand the autoreset mode.
+    envs = gym.wrappers.vector.RecordEpisodeStatistics(envs)
     try:
         assert envs.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP
         assert envs.observation_space.shape == (2, 1) and envs.action_space.shape == (2, 2)
@@ -74,6 +76,8 @@ def test_vector_env_autoresets_in_the_same_step(tmp_path):
         assert set(infos["final_info"]["outcome"]) <= {"truncated", "converged"}
         assert (infos["final_info"]["iterations"] <= 200).all()
         assert all(final.shape == (1,) for final in infos["final_obs"])
+        np.testing.assert_array_equal(infos["episode"]["r"], -infos["final_info"]["iterations"])
+        assert infos["episode"]["l"].tolist() == [2, 2]
         # obs are the new episodes' first observations: the state at rest, |U_inlet|^2 / U_ref^2.
         velocities = infos["inlet_velocity"]
         np.testing.assert_allclose(obs[:, 0], velocities**2 / 44.2**2, rtol=1e-3)
