@@ -98,10 +98,14 @@ class BatchedFoamEnv:
         self.observation_spec = spaces.observation_space(cfg)
         self.action_spec = spaces.action_space(cfg)
         self._batcher = _InfoBatcher(num_envs)
-        self._seed = seed
         self._streams = self._seed_streams(seed)
         self._tallies = [_Tally(np.zeros(cfg.observation_size, np.float32)) for _ in range(num_envs)]
-        self.backend = make_backend(backend, cfg, num_envs, pool, self.work_dir, ray_address)
+        try:
+            self.backend = make_backend(backend, cfg, num_envs, pool, self.work_dir, ray_address)
+        except BaseException:
+            if self._temp_dir:
+                shutil.rmtree(self.work_dir, ignore_errors=True)
+            raise
         self._closed = False
 
     # ----- seeding -----------------------------------------------------------------------------

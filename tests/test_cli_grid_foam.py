@@ -61,6 +61,7 @@ GOOD = ("--alpha-u", "0.7", "--alpha-p", "0.5")
         ((*GOOD, "--pool", "0"), "positive integer"),
         ((*GOOD, "--max-iterations", "50"), "max_iterations"),
         ((*GOOD, "--criterion", "strict"), "invalid choice"),
+        ((*GOOD, "--relax-k-omega", "1.2"), "(0, 1]"),
     ],
 )
 def test_bad_arguments_are_one_line_exit_2(capsys, tmp_path, argv, needle):

@@ -50,6 +50,8 @@ def register(subparsers: Any) -> None:
                         help="inlet velocity in m/s (default 44.2, the paper's U_ref)")
     parser.add_argument("--max-iterations", type=positive_int, default=4000,
                         help="iteration cap per cell (default 4000)")
+    parser.add_argument("--relax-k-omega", type=relaxation_factor, default=None, metavar="F",
+                        help="fixed relaxation factor of k and omega (default: follow alpha_u)")
     parser.add_argument("--criterion", choices=CRITERIA, default="train",
                         help="convergence criterion: the paper's train (1e-3) or test (5e-4) thresholds")
     parser.add_argument("--out", required=True, help="output directory (created if missing)")
@@ -62,7 +64,7 @@ def _config(args: argparse.Namespace) -> Any:
     convergence = TRAIN_CONVERGENCE if args.criterion == "train" else TEST_CONVERGENCE
     cfg = FoamEnvConfig(mesh_scale=args.mesh_scale, simple_variant=args.simple_variant,
                         inlet_velocity=args.inlet_velocity, max_iterations=args.max_iterations,
-                        convergence=dict(convergence))
+                        relax_k_omega=args.relax_k_omega, convergence=dict(convergence))
     try:
         return cfg.validate()
     except ValueError as err:
@@ -121,7 +123,8 @@ def run_grid_foam(args: argparse.Namespace) -> int:
         except ValueError as err:  # a case the env rejects: the same for every cell
             fail(str(err))
     write_grid_csv(cells, out / "grid.csv")
-    title = (f"SIMPLE iterations to convergence, constant factors\n{args.simple_variant}, "
+    k_omega = "k/omega follow alpha_u" if args.relax_k_omega is None else f"k/omega {args.relax_k_omega:g}"
+    title = (f"SIMPLE iterations to convergence, constant factors\n{args.simple_variant}, {k_omega}, "
              f"{args.criterion} criterion, mesh scale {args.mesh_scale:g}, V = {args.inlet_velocity:g} m/s")
     plot_grid(cells, out / "grid.png", title)
     best = best_cell(cells)
