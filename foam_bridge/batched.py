@@ -163,6 +163,8 @@ class BatchedFoamEnv:
         actions = np.asarray(actions, np.float64)
         if actions.shape != (self.num_envs, 2):
             raise ValueError(f"actions: expected shape ({self.num_envs}, 2), got {actions.shape}")
+        if not np.isfinite(actions).all():  # an agent bug, not a solver failure: refuse, as FoamCaseEnv does
+            raise ValueError(f"actions: expected finite (alpha_u, alpha_p), got {actions.tolist()}")
         replies = self.backend.run([Request(i, "step", {"action": actions[i]}) for i in range(self.num_envs)])
         rewards = np.zeros(self.num_envs, np.float64)
         terminated = np.zeros(self.num_envs, bool)

@@ -86,9 +86,11 @@ def test_bad_actions_and_backend_are_one_line_value_errors(tmp_path):
         BatchedFoamEnv(COARSE, 2, backend="mpi", work_dir=tmp_path)
     with pytest.raises(ValueError, match="pool"):
         BatchedFoamEnv(COARSE, 2, pool=3, work_dir=tmp_path)
-    with BatchedFoamEnv(COARSE, 2, pool=1, work_dir=tmp_path) as env, \
-            pytest.raises(ValueError, match=r"shape \(2, 2\)"):
-        env.step(np.zeros((3, 2)))
+    with BatchedFoamEnv(COARSE, 2, pool=1, work_dir=tmp_path) as env:
+        with pytest.raises(ValueError, match=r"shape \(2, 2\)"):
+            env.step(np.zeros((3, 2)))
+        with pytest.raises(ValueError, match="finite"):
+            env.step(np.array([[0.5, 0.5], [np.nan, 0.5]]))
     assert list(tmp_path.iterdir()) == []  # workers create case dirs only when an env is used
 
 
