@@ -35,18 +35,11 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 
 from foam_bridge.backends import BAD_INPUT_ERRORS, WORKER_DIED, Reply, Request, make_backend
-from foam_bridge.config import FoamEnvConfig
+from foam_bridge.config import FoamEnvConfig, failure_reward  # re-exported: the env's own penalty
 from foam_bridge.env import FoamEnv, seed_from_key
 from jaxsimrl.envs.protocol import BoxSpec, Step
 
 SEED_BOUND = 2**31 - 1
-
-
-def failure_reward(cfg: FoamEnvConfig, iterations: int) -> float:
-    """Reward of a step that ended in failure: the config's penalty, or -(iterations never run)."""
-    if cfg.failure_penalty is not None:
-        return float(cfg.failure_penalty)
-    return -float(max(cfg.max_iterations - iterations, 0))
 
 
 class _InfoBatcher(VectorEnv):

@@ -30,6 +30,11 @@ TRAIN_CONVERGENCE: Mapping[str, float] = MappingProxyType({"U": 1e-3, "k": 1e-3,
 TEST_CONVERGENCE: Mapping[str, float] = MappingProxyType({"U": 5e-4, "k": 5e-4, "omega": 5e-4, "p": 5e-2})
 
 SIMPLE_VARIANTS = ("SIMPLE", "SIMPLEC")
+#: Smallest mesh_scale of the built-in case measured usable (see FoamEnvConfig.mesh_scale).
+MESH_SCALE_USABLE_MIN = 0.4
+#: Every observation entry is clipped into [-OBSERVATION_BOUND, OBSERVATION_BOUND] (NaN -> the bound):
+#: the last line of defence for a learner's normaliser; divergence detection ends episodes long before.
+OBSERVATION_BOUND = 1e6
 
 
 @dataclass(frozen=True)
@@ -42,8 +47,12 @@ class FoamEnvConfig:
             path of a user's simpleFoam case (``system/``, ``constant/`` with a mesh or a
             ``system/blockMeshDict``, and ``0/``). The user's case is copied, never modified.
         mesh_scale: resolution factor of the built-in case: every block's cell count is multiplied by it
-            and rounded (at least 1 cell per direction). 1.0 = the tutorial's 20,540 cells; 0.25 gives
-            1,264 cells (fast tests). Ignored for a user's case.
+            and rounded (at least 1 cell per direction). 1.0 = the tutorial's 20,540 cells; 0.4 gives
+            3,276 cells, 0.5 gives 5,024. Use >= MESH_SCALE_USABLE_MIN (0.4; the tests use 0.4): measured
+            at 50 m/s, 0.25 (1,264 cells) and 0.3 (1,866) diverge or oscillate to the cap with the
+            high factors that are best on the full mesh ((0.95, 0.95) SIMPLEC; plain SIMPLE diverges
+            with alpha_u >= 0.7 up to 0.35), and converge only with some low ones, so they are a
+            different control problem; 0.35 is borderline. Ignored for a user's case.
         step_height: step height in metres of the built-in case. 0.0127 (h) is the paper's training
             geometry, 0.0254 (2h) its second test geometry: only the step is deepened (the downstream
             floor moves down), the inlet channel and the domain length stay the same.
@@ -72,6 +81,11 @@ class FoamEnvConfig:
             episode's return is -max_iterations.
         divergence_threshold: an initial residual above this (or NaN/Inf) ends the episode as
             ``diverged``.
+        state_divergence_ratio: a state term (mean |U|^2 over the cells or over the inlet) above this
+            multiple of the inlet's |U|^2 (or NaN/Inf) ends the episode as ``diverged``. Healthy runs
+            measured at mesh_scale 0.25-0.4 peaked at 13 x (typically 1-6 x), diverging ones reached
+            1e26 x within ~50 iterations; the default 1e3 catches a blow-up long before the observation
+            leaves float32's range. (The observation is also clipped to +-OBSERVATION_BOUND.)
 
     Host:
         step_timeout_s: watchdog: wall-clock seconds one step may take before the solver counts as hung.
@@ -101,6 +115,7 @@ class FoamEnvConfig:
     state_scale: float = U_REF**2
     failure_penalty: float | None = None
     divergence_threshold: float = 1e3
+    state_divergence_ratio: float = 1e3
     step_timeout_s: float = 120.0
     work_dir: Path | str | None = None
     keep_cases: bool = False
@@ -134,6 +149,8 @@ class FoamEnvConfig:
         _check(self.state_scale > 0, "state_scale", self.state_scale)
         _check(self.step_timeout_s > 0, "step_timeout_s", self.step_timeout_s)
         _check(self.divergence_threshold > 0, "divergence_threshold", self.divergence_threshold)
+        _check(self.state_divergence_ratio > 0 and math.isfinite(self.state_divergence_ratio),
+               "state_divergence_ratio", self.state_divergence_ratio)
         if self.failure_penalty is not None:
             _check(math.isfinite(self.failure_penalty), "failure_penalty", self.failure_penalty, "finite")
         return self
@@ -151,6 +168,18 @@ class FoamEnvConfig:
     def observation_size(self) -> int:
         """Length of the observation vector: the paper's state plus the residual features."""
         return 1 + self.residual_features * len(self.convergence)
+
+
+def failure_reward(cfg: FoamEnvConfig, iterations_before: int) -> float:
+    """Reward of the step on which the solver failed (crashed, diverged, hung, dead worker).
+
+    ``cfg.failure_penalty`` if set; otherwise as if the episode had run to the cap:
+    ``-(max_iterations - iterations_before)``, with ``iterations_before`` = K at the start of that step,
+    so that the episode's return is ``-max_iterations``.
+    """
+    if cfg.failure_penalty is not None:
+        return float(cfg.failure_penalty)
+    return -float(max(cfg.max_iterations - iterations_before, 0))
 
 
 def _is_int(value: object) -> bool:

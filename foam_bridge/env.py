@@ -9,9 +9,17 @@ MDP (Pawar & Maulik, "Solver convergence acceleration"):
   optionally the log10 initial residuals of the last ``residual_features`` step boundaries.
 - reward: -(K_t - K_{t-1}), K = SIMPLE iterations actually run; the return is minus the total.
 - episode end: the solver's own ``SIMPLE.residualControl`` met (``converged``, terminated), the
-  ``max_iterations`` cap (``truncated``), or a failure (terminated, with the failure penalty):
-  ``crashed`` (solver died, broken case), ``diverged`` (NaN/Inf or residual above the threshold),
+  ``max_iterations`` cap (``truncated``), or a failure (terminated, reward :func:`failure_reward`):
+  ``crashed`` (solver died, broken case), ``diverged`` (NaN/Inf or an initial residual above
+  ``divergence_threshold``, or a state term above ``state_divergence_ratio`` x the inlet's |U|^2),
   ``hung`` (the step watchdog fired).
+- K on failure is deterministic: the solver's whole output is read to EOF (after its death, or after
+  the bridge killed it) before anything is accounted, and K is the iteration in which the failure shows
+  in the log: the first bad iteration (diverged), the iteration the solver died in (crashed) or the
+  last one it started (hung). The cause text names the same iteration.
+- the observation is always finite float32: every entry is clipped into +-OBSERVATION_BOUND (1e6), a
+  last line of defence; the state divergence check ends an episode long before (|state| <= 2e3 x the
+  inlet |U|^2 / state_scale).
 
 One simpleFoam process runs per episode (no restarts: bit-identical to an uninterrupted run with
 the same factors, tested). It pauses itself exactly between iterations K and K+1 for every K that is a
@@ -26,6 +34,9 @@ The state of iteration K is printed by stock function objects before the pause, 
 
 from __future__ import annotations
 
+import errno
+import fcntl
+import os
 import shutil
 import signal
 import tempfile
@@ -38,7 +49,7 @@ from typing import Any
 import numpy as np
 
 from foam_bridge import case as foam_case
-from foam_bridge.config import FoamEnvConfig
+from foam_bridge.config import OBSERVATION_BOUND, FoamEnvConfig, failure_reward
 from foam_bridge.logparse import LogParser, field_residual
 from foam_bridge.openfoam import find_openfoam
 from foam_bridge.solver import DIVERGED, EXITED, HUNG, PAUSED, FoamSolver
@@ -48,6 +59,11 @@ from jaxsimrl.envs.protocol import BoxSpec, Step
 OUTCOMES = ("running", "converged", "truncated", "crashed", "diverged", "hung")
 #: Outcomes that are a failure of the solver (terminated, with the failure penalty).
 FAILURES = ("crashed", "diverged", "hung")
+#: Lock file held (fcntl.flock) by the FoamCaseEnv that owns an env directory.
+LOCK_FILE = ".foam_bridge.lock"
+
+__all__ = ["FAILURES", "OUTCOMES", "FoamCaseEnv", "FoamEnv", "FoamEnvState", "action_spec", "failure_reward",
+           "observation_spec", "seed_from_key"]
 
 
 class FoamCaseEnv:
@@ -57,7 +73,10 @@ class FoamCaseEnv:
     OpenFOAM (``foam_bridge.errors.OpenFOAMNotFoundError`` naming how to install it), checks a user's
     ``case_dir`` (``foam_bridge.errors.CaseError``, a ValueError) and builds the base case (mesh) once
     under ``<work_dir or cfg.work_dir or a temporary dir>/env_<env_id>``. Every episode runs in a fresh
-    copy of that base case.
+    copy of that base case. The env holds an exclusive lock (``fcntl.flock`` on ``LOCK_FILE`` in that
+    directory) until close(): a second FoamCaseEnv on the same directory, in this process or another,
+    is a one-line ``ValueError`` instead of two envs deleting each other's cases. The kernel drops the
+    lock when its process dies, so a restarted worker can take the directory over.
 
     ``reset(seed=None, options=None) -> (obs, info)``: ends any running episode (kills the solver's
     process group), samples the inlet velocity from the episode RNG (re-seeded when ``seed`` is given;
@@ -81,10 +100,14 @@ class FoamCaseEnv:
         parent = work_dir if work_dir is not None else cfg.work_dir
         self._tmp = None if parent is not None else tempfile.mkdtemp(prefix="foam_bridge_")
         self.root = Path(parent if parent is not None else self._tmp) / f"env_{env_id}"
-        self.root.mkdir(parents=True, exist_ok=True)
+        self._lock = _claim_directory(self.root)
         self.base = self.root / "base"
         self.case_dir = self.root / "episode"
-        foam_case.build_base_case(cfg, self.base, self.openfoam)
+        try:
+            foam_case.build_base_case(cfg, self.base, self.openfoam)
+        except BaseException:
+            os.close(self._lock)
+            raise
         self._rng = np.random.default_rng(env_id)
         self._solver: FoamSolver | None = None
         self._episode: dict[str, Any] = {}
@@ -115,8 +138,11 @@ class FoamCaseEnv:
             velocity = float(self._rng.uniform(*self.cfg.velocity_range))
         foam_case.write_episode_case(self.base, self.case_dir, self.cfg, velocity)
         self._relaxation = foam_case.case_relaxation(self.case_dir)
+        inlet, cells = foam_case.initial_state(self.case_dir, self.cfg)
+        # the state limit is relative to this episode's inlet, so it is as tight at 25 m/s as at 75 m/s
+        state_limit = self.cfg.state_divergence_ratio * max(inlet, velocity**2)
         self._parser = LogParser(foam_case.CELLS_FUNCTION, foam_case.INLET_FUNCTION,
-                                 self.cfg.divergence_threshold)
+                                 self.cfg.divergence_threshold, state_limit)
         self._iterations = 0
         self._features: deque[np.ndarray] = deque(
             [np.zeros(len(self.cfg.convergence))] * self.cfg.residual_features,
@@ -124,7 +150,6 @@ class FoamCaseEnv:
         self._episode = {"env_id": self.env_id, "seed": seed, "inlet_velocity": velocity, "actions": [],
                          "return": 0.0, "steps": 0, "solver_idle_s": 0.0, "started": time.monotonic()}
         self._done = False
-        inlet, cells = foam_case.initial_state(self.case_dir, self.cfg)
         self._obs = self._observation(inlet, cells)
         return self._obs.copy(), self._info("running", "", {})
 
@@ -135,15 +160,15 @@ class FoamCaseEnv:
         alpha = np.clip(_two_factors(action), self.cfg.action_low, self.cfg.action_high)
         self._episode["actions"].append([float(alpha[0]), float(alpha[1])])
         text = foam_case.relaxation_text(self._relaxation, self.cfg, alpha[0], alpha[1])
-        outcome, cause = self._classify(self._advance(text))
-        previous, self._iterations = self._iterations, self._iteration_count(outcome)
+        event = self._advance(text)
+        # stop before accounting: the whole output is then parsed, whatever had been read so far
+        code = self._stop_solver() if event != PAUSED else None
+        outcome, cause, iterations = self._classify(event, code)
+        previous, self._iterations = self._iterations, max(iterations, self._iterations)
         if outcome in FAILURES:
-            penalty = self.cfg.failure_penalty
-            reward = float(-(self.cfg.max_iterations - previous) if penalty is None else penalty)
+            reward = failure_reward(self.cfg, previous)
         else:
             reward = float(-(self._iterations - previous))
-        if outcome != "running":
-            self._stop_solver()
         residuals = self._residuals()
         self._update_observation(outcome, residuals)
         self._episode["return"] += reward
@@ -165,10 +190,12 @@ class FoamCaseEnv:
         """Kill the solver's process group (no orphans) and remove the case directories."""
         self._stop_solver()
         self._done = True
-        if not self.cfg.keep_cases and not self._closed:
-            shutil.rmtree(self.root, ignore_errors=True)
-            if self._tmp is not None:
-                shutil.rmtree(self._tmp, ignore_errors=True)
+        if not self._closed:
+            if not self.cfg.keep_cases:
+                shutil.rmtree(self.root, ignore_errors=True)
+                if self._tmp is not None:
+                    shutil.rmtree(self._tmp, ignore_errors=True)
+            os.close(self._lock)  # after the removal: nobody else may build in the directory before
         self._closed = True
 
     @property
@@ -204,35 +231,32 @@ class FoamCaseEnv:
             if event != PAUSED or self._parser.completed >= target:
                 return event
 
-    def _classify(self, event: str) -> tuple[str, str]:
-        """(outcome, cause) of a solver event."""
+    def _classify(self, event: str, code: int | None) -> tuple[str, str, int]:
+        """(outcome, cause, K) of a solver event, from the fully parsed output of a stopped solver.
+
+        A divergence in the log wins over the event that stopped the solver (a watchdog that fired
+        while a NaN was still in the pipe is a divergence), so the outcome does not depend on timing.
+        """
         parser, cfg = self._parser, self.cfg
         if event == PAUSED:
-            return "running", ""
-        if event == DIVERGED:
-            return "diverged", f"diverged: {parser.diverged}"
+            return "running", "", parser.completed
+        if parser.failed_at is not None:
+            return "diverged", f"diverged: {parser.diverged}", parser.failed_at
         if event == HUNG:
             return "hung", (f"watchdog: no progress within step_timeout_s={cfg.step_timeout_s} s "
-                            f"(last iteration started: {parser.iteration})")
-        assert event == EXITED and self._solver is not None
-        code = self._solver.returncode
+                            f"(last iteration started: {parser.iteration})"), parser.iteration
+        assert event in (EXITED, DIVERGED)
         if parser.converged_at is not None:
-            return "converged", ""
+            return "converged", "", parser.converged_at
         if code == 0 and parser.completed >= cfg.max_iterations:
-            return "truncated", ""
+            return "truncated", "", parser.completed
         detail = parser.error or "no error message"
         if code is not None and code < 0:
             detail = f"killed by {signal.Signals(-code).name}; {detail}"
         elif code == 0:
             detail = "it ended without converging before max_iterations"
-        return "crashed", f"simpleFoam exited with code {code} at iteration {parser.iteration}: {detail}"
-
-    def _iteration_count(self, outcome: str) -> int:
-        if outcome == "converged":
-            return int(self._parser.converged_at or self._parser.completed)
-        if outcome in FAILURES:
-            return max(self._parser.iteration, self._iterations)
-        return self._parser.completed
+        cause = f"simpleFoam exited with code {code} at iteration {parser.iteration}: {detail}"
+        return "crashed", cause, parser.iteration
 
     def _residuals(self) -> dict[str, float]:
         found = {name: field_residual(self._parser.residuals, name) for name in self.cfg.convergence}
@@ -254,7 +278,7 @@ class FoamCaseEnv:
 
     def _observation_from_state(self, state: float) -> np.ndarray:
         parts = [np.array([state]), *self._features] if self.cfg.residual_features else [np.array([state])]
-        return np.concatenate(parts).astype(np.float32)
+        return bounded_observation(np.concatenate(parts))
 
     def _info(self, outcome: str, cause: str, residuals: dict[str, float]) -> dict[str, Any]:
         return {"iterations": self._iterations, "residuals": residuals, "outcome": outcome,
@@ -266,11 +290,14 @@ class FoamCaseEnv:
                       wall_time_s=time.monotonic() - self._episode["started"])
         return record
 
-    def _stop_solver(self) -> None:
-        if self._solver is not None:
-            self._episode["solver_idle_s"] = self._solver.idle_s
-            self._solver.kill()
-            self._solver = None
+    def _stop_solver(self) -> int | None:
+        """Kill the solver (its output read to EOF); its exit status, None if none was running."""
+        if self._solver is None:
+            return None
+        self._episode["solver_idle_s"] = self._solver.idle_s
+        code = self._solver.kill()
+        self._solver = None
+        return code
 
 
 @dataclass
@@ -337,10 +364,47 @@ def _two_factors(action: Any) -> np.ndarray:
 
 
 def observation_spec(cfg: FoamEnvConfig) -> BoxSpec:
-    """Box of the observation (float32): the scaled state (>= 0) then the log10 residual features."""
+    """Box of the observation (float32): the scaled state in [0, B] then the log10 residual features in
+    [-B, B], B = OBSERVATION_BOUND."""
     n = cfg.observation_size
-    low = np.array([0.0] + [-np.inf] * (n - 1), dtype=np.float32)
-    return BoxSpec(low=low, high=np.full(n, np.inf, dtype=np.float32), shape=(n,))
+    low = np.array([0.0] + [-OBSERVATION_BOUND] * (n - 1), dtype=np.float32)
+    return BoxSpec(low=low, high=np.full(n, OBSERVATION_BOUND, dtype=np.float32), shape=(n,))
+
+
+def bounded_observation(values: np.ndarray) -> np.ndarray:
+    """float32, finite, every entry in [-OBSERVATION_BOUND, OBSERVATION_BOUND] (NaN -> the upper bound)."""
+    clean = np.nan_to_num(np.asarray(values, dtype=np.float64), nan=OBSERVATION_BOUND,
+                          posinf=OBSERVATION_BOUND, neginf=-OBSERVATION_BOUND)
+    return np.clip(clean, -OBSERVATION_BOUND, OBSERVATION_BOUND).astype(np.float32)
+
+
+def _claim_directory(root: Path) -> int:
+    """Create ``root`` and take the exclusive lock on its LOCK_FILE; returns the lock's descriptor.
+
+    One-line ValueError if another live FoamCaseEnv holds it. If the owner removed the directory
+    between our open and our lock (its close()), the lock is on a dead file: retry on the new one.
+    """
+    while True:
+        root.mkdir(parents=True, exist_ok=True)
+        path = root / LOCK_FILE
+        try:
+            fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+        except FileNotFoundError:
+            continue  # the directory vanished under us
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError as error:
+            os.close(fd)
+            if error.errno in (errno.EWOULDBLOCK, errno.EAGAIN):
+                raise ValueError(f"env directory {root} is in use by another FoamCaseEnv (same work_dir "
+                                 f"and env_id); give each env its own env_id or work_dir") from None
+            raise
+        try:
+            if os.path.samestat(os.fstat(fd), os.stat(path)):
+                return fd
+        except FileNotFoundError:
+            pass
+        os.close(fd)
 
 
 def action_spec(cfg: FoamEnvConfig) -> BoxSpec:

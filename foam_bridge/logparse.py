@@ -17,7 +17,9 @@ What it recognises (OpenFOAM v1912 wording):
   fvSolution, i.e. before the solver opens the relaxation FIFO again; counted in ``fvsolution_rereads``.
 - ``--> FOAM FATAL (IO) ERROR`` (+ its message line), the sigFpe/sigSegv stack traces: crash causes.
 - NaN/Inf or an initial residual above ``divergence_threshold``, or a state term that is not finite or
-  above STATE_LIMIT: divergence.
+  above ``state_limit``: divergence. The parser then freezes: it ignores the rest of the output, so
+  everything it reports (``failed_at``, residuals, history, state) is that of the first bad iteration
+  however far the solver ran on before it was stopped and however the output was chunked.
 """
 
 from __future__ import annotations
@@ -37,7 +39,8 @@ _REREAD = re.compile(r"Re-reading object fvSolution\b")
 _ERRORS = {"sigFpe::sigHandler": "floating point exception (SIGFPE)",
            "sigSegv::sigHandler": "segmentation fault (SIGSEGV)",
            "FOAM FATAL": "FOAM FATAL ERROR", "std::bad_alloc": "out of memory (std::bad_alloc)"}
-#: A state term above this (|U|^2 in m^2/s^2) means the solution has blown up.
+#: Default bound of a state term (|U|^2 in m^2/s^2) above which the solution has blown up; the env
+#: sets a much tighter, inlet-relative one (FoamEnvConfig.state_divergence_ratio).
 STATE_LIMIT = 1e30
 VECTOR_COMPONENTS = ("x", "y", "z")
 
@@ -67,12 +70,15 @@ class LogParser:
     ``residuals`` (raw initial residuals of the last finished iteration, e.g. {"Ux": .., "p": ..}),
     ``history`` (one residual dict per finished iteration, in order), ``cells_state`` /
     ``inlet_state`` / ``state_iteration`` (latest state terms and the iteration they belong to),
-    ``converged_at``, ``fvsolution_rereads``, ``error`` (first crash line), ``diverged`` (cause text).
+    ``converged_at``, ``fvsolution_rereads``, ``error`` (first crash line), ``diverged`` (cause text)
+    and ``failed_at`` (the iteration in which divergence was detected; the parser ignores all output
+    after that line).
     """
 
     cells_function: str
     inlet_function: str
     divergence_threshold: float = 1e3
+    state_limit: float = STATE_LIMIT
     iteration: int = 0
     completed: int = 0
     residuals: dict[str, float] = field(default_factory=dict)
@@ -84,6 +90,7 @@ class LogParser:
     fvsolution_rereads: int = 0
     error: str | None = None
     diverged: str | None = None
+    failed_at: int | None = None
     _current: dict[str, float] = field(default_factory=dict)
     _pending_function: str | None = None
     _pending_error: bool = False
@@ -104,6 +111,8 @@ class LogParser:
             self._partial = ""
 
     def _line(self, line: str) -> None:
+        if self.diverged is not None:
+            return  # frozen at the first bad iteration (see the module docstring)
         if self._pending_error and line.strip():
             self.error = f"{self.error}: {line.strip()}"
             self._pending_error = False
@@ -139,8 +148,8 @@ class LogParser:
         if name in self._current:
             return  # only the first solve of a field per iteration counts (as residualControl)
         self._current[name] = value
-        if self.diverged is None and not (math.isfinite(value) and value <= self.divergence_threshold):
-            self.diverged = f"initial residual of {name} = {value} at iteration {self.iteration}"
+        if not (math.isfinite(value) and value <= self.divergence_threshold):
+            self._diverge(f"initial residual of {name} = {value}")
 
     def _state_term(self, function: str, value: float) -> None:
         if function == self.cells_function:
@@ -150,5 +159,9 @@ class LogParser:
         else:
             return
         self.state_iteration = self.iteration
-        if self.diverged is None and not (math.isfinite(value) and abs(value) <= STATE_LIMIT):
-            self.diverged = f"state term {function} = {value} at iteration {self.iteration}"
+        if not (math.isfinite(value) and abs(value) <= self.state_limit):
+            self._diverge(f"state term {function} = {value} (limit {self.state_limit:.6g})")
+
+    def _diverge(self, what: str) -> None:
+        self.failed_at = self.iteration
+        self.diverged = f"{what} at iteration {self.iteration}"

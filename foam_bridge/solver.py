@@ -34,6 +34,9 @@ QUIET_POLL_S = 0.002
 #: After reading output, let more accumulate for this long: simpleFoam flushes every line, and waking
 #: up once per line would cost the bridge (and a loaded machine) far more CPU than parsing does.
 READ_BATCH_S = 0.005
+#: Upper bound on reading a killed solver's output to EOF (only a stray inheritor of the pipe could
+#: hold it open; the whole process group is dead).
+EOF_TIMEOUT_S = 5.0
 PAUSED, EXITED, HUNG, DIVERGED = "paused", "exited", "hung", "diverged"
 
 
@@ -116,13 +119,19 @@ class FoamSolver:
             self._writer = None
             self.idle_s += time.monotonic() - self._paused_at
 
-    def kill(self) -> None:
-        """SIGKILL the solver's whole process group, reap it and close every descriptor."""
+    def kill(self) -> int | None:
+        """SIGKILL the solver's whole process group, reap it, read its output to EOF, close everything.
+
+        Reading to EOF after the kill makes what the parser saw independent of how far the bridge had
+        read when it decided to stop the solver. Returns the exit status (None if it never started).
+        """
+        code = None
         if self.process is not None and self.pgid is not None:
             with contextlib.suppress(ProcessLookupError):
                 os.killpg(self.pgid, signal.SIGKILL)
-            self.process.wait()
-            if self.process.stdout is not None:
+            code = self.process.wait()
+            if self.process.stdout is not None and not self.process.stdout.closed:
+                self._drain_to_eof(self.process.stdout.fileno())
                 self.process.stdout.close()
         if self._writer is not None:
             os.close(self._writer)
@@ -130,6 +139,7 @@ class FoamSolver:
         if self._log is not None:
             self._log.close()
             self._log = None
+        return code
 
     def _pump(self, out: int) -> bool:
         """Read what is available (maybe nothing); False at end of stream."""
@@ -144,6 +154,15 @@ class FoamSolver:
         assert self._log is not None
         self._log.write(data)
         return True
+
+    def _drain_to_eof(self, out: int) -> None:
+        """Read the dead group's remaining output; every writer is gone, so EOF comes at once."""
+        deadline = time.monotonic() + EOF_TIMEOUT_S
+        while time.monotonic() < deadline:
+            readable, _, _ = select.select([out], [], [], max(deadline - time.monotonic(), 0.0))
+            if readable and not self._pump(out):
+                break
+        self.parser.finish()
 
     def _drain(self, out: int) -> None:
         """Everything the paused solver printed is already in the pipe: read all of it."""

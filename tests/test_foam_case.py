@@ -11,7 +11,14 @@ import pytest
 from foamlib import FoamFile
 
 from foam_bridge import case as foam_case
-from foam_bridge.config import STEP_HEIGHT_H, TEST_CONVERGENCE, FoamEnvConfig
+from foam_bridge.config import (
+    OBSERVATION_BOUND,
+    STEP_HEIGHT_H,
+    TEST_CONVERGENCE,
+    FoamEnvConfig,
+    failure_reward,
+)
+from foam_bridge.env import bounded_observation, observation_spec
 from foam_bridge.errors import OpenFOAMNotFoundError
 from foam_bridge.openfoam import find_openfoam
 
@@ -127,8 +134,27 @@ def test_missing_openfoam_is_a_one_line_error_saying_how_to_install(tmp_path: Pa
     ({"action_low": (0.5, 0.2), "action_high": (0.4, 0.95)}, "action_low"),
     ({"inlet_velocity": (65.0, 35.0)}, "inlet_velocity"), ({"convergence": {}}, "convergence"),
     ({"inlet_patch": ""}, "inlet_patch"), ({"relax_k_omega": 1.5}, "relax_k_omega"),
+    ({"state_divergence_ratio": 0.0}, "state_divergence_ratio"),
+    ({"state_divergence_ratio": float("inf")}, "state_divergence_ratio"),
 ])
 def test_bad_config_is_a_one_line_value_error_naming_the_field(overrides: dict, field: str) -> None:
     with pytest.raises(ValueError, match=f"FoamEnvConfig.{field}") as error:
         FoamEnvConfig(**overrides).validate()
     assert "\n" not in str(error.value)
+
+
+def test_failure_reward_is_the_rest_of_the_cap_or_the_configured_penalty() -> None:
+    assert failure_reward(FoamEnvConfig(max_iterations=4000), 1269) == -2731.0
+    assert failure_reward(FoamEnvConfig(max_iterations=4000), 4000) == 0.0
+    assert failure_reward(FoamEnvConfig(max_iterations=4000, failure_penalty=-2000.0), 1269) == -2000.0
+
+
+def test_observation_is_always_finite_float32_inside_the_documented_box() -> None:
+    raw = np.array([np.inf, -np.inf, np.nan, 1e40, -1e40, 3.5, -2.0])
+    obs = bounded_observation(raw)
+    assert obs.dtype == np.float32 and np.all(np.isfinite(obs))
+    b = OBSERVATION_BOUND
+    np.testing.assert_array_equal(obs, np.array([b, -b, b, b, -b, 3.5, -2.0], dtype=np.float32))
+    spec = observation_spec(FoamEnvConfig(residual_features=1))
+    assert spec.shape == (5,) and spec.low[0] == 0.0
+    assert np.all(spec.low[1:] == -b) and np.all(spec.high == b) and np.all(np.isfinite(spec.high))

@@ -1,7 +1,8 @@
 """FoamCaseEnv against the real simpleFoam on coarse backward-facing-step meshes (a few seconds each).
 
 mesh_scale 0.4 (3,276 cells) with SIMPLEC and factors (0.95, 0.95) converges in ~180 iterations at the
-paper's training criterion and ~215 at its test criterion; mesh_scale 0.25 diverges with them.
+paper's training criterion and ~215 at its test criterion; mesh_scale 0.25 (below the usable scales,
+see FoamEnvConfig.mesh_scale) diverges with them within ~100 iterations: the divergence tests use it.
 """
 
 from __future__ import annotations
@@ -127,17 +128,35 @@ def test_test_criterion_converges_later_than_training_criterion(tmp_path: Path) 
     assert iterations["train"] < iterations["test"] < 1000
 
 
-def test_divergence_is_an_outcome_with_the_default_penalty(tmp_path: Path) -> None:
-    env = FoamCaseEnv(_cfg(tmp_path, mesh_scale=0.25, interval=50, max_iterations=1000))
-    try:
-        env.reset(options={"inlet_velocity": U_REF})
-        rewards, info = _run_episode(env, BEST)
-    finally:
-        env.close()
-    assert info["outcome"] == "diverged" and "diverged" in info["cause"]
-    assert info["episode"]["outcome"] == "diverged" and info["episode"]["cause"] == info["cause"]
+def test_divergence_is_deterministic_with_the_penalty_and_a_bounded_observation(tmp_path: Path) -> None:
+    """The same diverging episode 3x: same K, outcome, cause and record; the state never blows up."""
+    cfg = _cfg(tmp_path, mesh_scale=0.25, interval=10, max_iterations=1000)
+    runs = []
+    with FoamCaseEnv(cfg) as env:
+        for _ in range(3):
+            obs, _ = env.reset(options={"inlet_velocity": U_REF})
+            observations, rewards = [obs], []
+            while True:
+                obs, reward, terminated, truncated, info = env.step(BEST)
+                observations.append(obs)
+                rewards.append(reward)
+                if terminated or truncated:
+                    break
+            record = {key: value for key, value in info["episode"].items()
+                      if key not in ("wall_time_s", "solver_idle_s")}
+            runs.append((info["iterations"], info["outcome"], info["cause"], rewards, record))
+            # the learner only ever sees finite float32 states well below the blow-up (<= 2 x the limit)
+            states = np.array([o[0] for o in observations])
+            assert all(o.dtype == np.float32 for o in observations) and np.all(np.isfinite(states))
+            assert states.max() <= 2 * cfg.state_divergence_ratio * U_REF**2 / cfg.state_scale
+    assert runs[0] == runs[1] == runs[2]
+    iterations, outcome, cause, rewards, record = runs[0]
+    assert outcome == "diverged" and cause.startswith("diverged: ")
+    assert cause.endswith(f"at iteration {iterations}")  # K is the first bad iteration
+    assert record["outcome"] == "diverged" and record["cause"] == cause and record["iterations"] == iterations
     steps_before = len(rewards) - 1
-    assert rewards[-1] == -(1000 - 50 * steps_before)  # as if it had run to max_iterations
+    assert steps_before * 10 < iterations <= (steps_before + 1) * 10
+    assert rewards[-1] == -(1000 - 10 * steps_before)  # as if it had run to max_iterations
     assert sum(rewards) == -1000
 
 
@@ -194,7 +213,27 @@ def test_hung_solver_is_killed_by_the_watchdog(tmp_path: Path) -> None:
         env.close()
     assert terminated and info["outcome"] == "hung" and "watchdog" in info["cause"]
     assert 3.0 <= waited < 15 and reward == -(1000 - 10)
+    # stopped at the pause after iteration 10: K and the cause name that iteration, whatever the timing
+    assert info["iterations"] == 10 and info["cause"].endswith("(last iteration started: 10)")
     assert _wait_group_gone(pgid)
+
+
+def test_two_envs_cannot_share_an_env_directory(tmp_path: Path) -> None:
+    first = FoamCaseEnv(_cfg(tmp_path))
+    try:
+        with pytest.raises(ValueError, match="in use by another FoamCaseEnv") as error:
+            FoamCaseEnv(_cfg(tmp_path))
+        assert "\n" not in str(error.value)
+        with FoamCaseEnv(_cfg(tmp_path), env_id=1) as other:  # another env_id is another directory
+            other.reset(seed=0)
+        # the refused env touched nothing: the first one's case still runs
+        first.reset(seed=0)
+        _, reward, _, _, info = first.step(BEST)
+        assert (reward, info["outcome"]) == (-25.0, "running")
+    finally:
+        first.close()
+    with FoamCaseEnv(_cfg(tmp_path)) as again:  # released by close()
+        assert again.root == first.root
 
 
 def test_close_leaves_no_process_behind(tmp_path: Path) -> None:

@@ -134,3 +134,55 @@ def test_divergence_from_an_exploding_state() -> None:
     healthy = _parser()
     healthy.feed(text.format("1e+5"))
     assert healthy.diverged is None and healthy.cells_state == 1e5
+
+
+DIVERGING = """\
+Time = 6
+
+smoothSolver:  Solving for Ux, Initial residual = 0.5, Final residual = 0.01, No Iterations 1
+GAMG:  Solving for p, Initial residual = 0.9, Final residual = 0.05, No Iterations 3
+ExecutionTime = 0.1 s  ClockTime = 0 s
+
+Time = 7
+
+smoothSolver:  Solving for Ux, Initial residual = nan, Final residual = nan, No Iterations 1
+GAMG:  Solving for p, Initial residual = 0.8, Final residual = 0.05, No Iterations 3
+ExecutionTime = 0.2 s  ClockTime = 0 s
+
+volFieldValue foamBridgeCells write:
+    average(region0) of foamBridgeMagSqrU = 1e+40
+
+Time = 8
+
+smoothSolver:  Solving for Ux, Initial residual = 0.1, Final residual = 0.01, No Iterations 1
+ExecutionTime = 0.3 s  ClockTime = 0 s
+"""
+
+
+def test_parser_freezes_at_the_first_bad_iteration_however_the_output_is_chunked() -> None:
+    results = []
+    for size in (1, 13, len(DIVERGING)):
+        parser = _parser()
+        data = DIVERGING.encode()
+        for i in range(0, len(data), size):
+            parser.feed(data[i:i + size])
+        parser.finish()
+        results.append((parser.failed_at, parser.diverged, parser.iteration, parser.completed,
+                        parser.history, parser.cells_state))
+    assert results[0] == results[1] == results[2]
+    failed_at, diverged, iteration, completed, history, cells = results[0]
+    # nothing after the NaN counts: not iteration 8, not the exploding state, not iteration 7's end
+    assert (failed_at, iteration, completed, cells) == (7, 7, 6, None)
+    assert diverged == "initial residual of Ux = nan at iteration 7" and len(history) == 1
+
+
+def test_state_limit_is_configurable() -> None:
+    text = ("Time = 4\nsurfaceFieldValue foamBridgeInlet write:\n"
+            "    average(inlet) of foamBridgeMagSqrU = 3e+06\n")
+    strict = LogParser("foamBridgeCells", "foamBridgeInlet", state_limit=2.5e6)
+    strict.feed(text)
+    assert strict.failed_at == 4 and strict.diverged == (
+        "state term foamBridgeInlet = 3000000.0 (limit 2.5e+06) at iteration 4")
+    default = _parser()
+    default.feed(text)
+    assert default.diverged is None and default.inlet_state == 3e6
