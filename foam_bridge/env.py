@@ -34,7 +34,7 @@ The state of iteration K is printed by stock function objects before the pause, 
 
 from __future__ import annotations
 
-import errno
+import contextlib
 import fcntl
 import os
 import shutil
@@ -44,7 +44,7 @@ import time
 from collections import deque
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 import numpy as np
 
@@ -106,7 +106,7 @@ class FoamCaseEnv:
         try:
             foam_case.build_base_case(cfg, self.base, self.openfoam)
         except BaseException:
-            os.close(self._lock)
+            self._lock.close()
             raise
         self._rng = np.random.default_rng(env_id)
         self._solver: FoamSolver | None = None
@@ -195,7 +195,7 @@ class FoamCaseEnv:
                 shutil.rmtree(self.root, ignore_errors=True)
                 if self._tmp is not None:
                     shutil.rmtree(self._tmp, ignore_errors=True)
-            os.close(self._lock)  # after the removal: nobody else may build in the directory before
+            self._lock.close()  # after the removal: nobody else may build in the directory before
         self._closed = True
 
     @property
@@ -378,33 +378,31 @@ def bounded_observation(values: np.ndarray) -> np.ndarray:
     return np.clip(clean, -OBSERVATION_BOUND, OBSERVATION_BOUND).astype(np.float32)
 
 
-def _claim_directory(root: Path) -> int:
-    """Create ``root`` and take the exclusive lock on its LOCK_FILE; returns the lock's descriptor.
+def _claim_directory(root: Path) -> BinaryIO:
+    """Create ``root`` and take the exclusive lock on its LOCK_FILE; returns the open lock file.
 
-    One-line ValueError if another live FoamCaseEnv holds it. If the owner removed the directory
-    between our open and our lock (its close()), the lock is on a dead file: retry on the new one.
+    One-line ValueError if another live FoamCaseEnv holds it. The lock lives as long as the file
+    object (closed by close(), by garbage collection, or by the kernel when the process dies). If the
+    owner removed the directory between our open and our lock (its close()), the lock is on a dead
+    file: retry on the new one.
     """
     while True:
         root.mkdir(parents=True, exist_ok=True)
         path = root / LOCK_FILE
         try:
-            fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+            lock = open(path, "ab")  # noqa: SIM115 (held until FoamCaseEnv.close)
         except FileNotFoundError:
             continue  # the directory vanished under us
         try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError as error:
-            os.close(fd)
-            if error.errno in (errno.EWOULDBLOCK, errno.EAGAIN):
-                raise ValueError(f"env directory {root} is in use by another FoamCaseEnv (same work_dir "
-                                 f"and env_id); give each env its own env_id or work_dir") from None
-            raise
-        try:
-            if os.path.samestat(os.fstat(fd), os.stat(path)):
-                return fd
-        except FileNotFoundError:
-            pass
-        os.close(fd)
+            fcntl.flock(lock.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            lock.close()
+            raise ValueError(f"env directory {root} is in use by another FoamCaseEnv (same work_dir "
+                             f"and env_id); give each env its own env_id or work_dir") from None
+        with contextlib.suppress(FileNotFoundError):
+            if os.path.samestat(os.fstat(lock.fileno()), os.stat(path)):
+                return lock
+        lock.close()
 
 
 def action_spec(cfg: FoamEnvConfig) -> BoxSpec:
