@@ -16,10 +16,12 @@ MDP (Pawar & Maulik, "Solver convergence acceleration"):
 - K on failure is deterministic: the solver's whole output is read to EOF (after its death, or after
   the bridge killed it) before anything is accounted, and K is the iteration in which the failure shows
   in the log: the first bad iteration (diverged), the iteration the solver died in (crashed) or the
-  last one it started (hung). The cause text names the same iteration.
+  last one it started (hung; only a watchdog that fires on a slow but live solver stays timing-
+  dependent, by nature). The cause text names the same iteration.
 - the observation is always finite float32: every entry is clipped into +-OBSERVATION_BOUND (1e6), a
-  last line of defence; the state divergence check ends an episode long before (|state| <= 2e3 x the
-  inlet |U|^2 / state_scale).
+  last line of defence; the state divergence check ends an episode long before (an observed state is
+  at most 2 x state_divergence_ratio x the inlet's |U|^2 / state_scale, ~4.3e3 at the defaults and
+  65 m/s).
 
 One simpleFoam process runs per episode (no restarts: bit-identical to an uninterrupted run with
 the same factors, tested). It pauses itself exactly between iterations K and K+1 for every K that is a
