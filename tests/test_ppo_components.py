@@ -9,7 +9,7 @@ import pytest
 
 from jaxsimrl.agents.ppo import PolicyParams, PPOConfig, make_policy, make_train
 from jaxsimrl.agents.ppo import normalizer as norm
-from jaxsimrl.agents.ppo.distribution import to_box
+from jaxsimrl.agents.ppo.distribution import gaussian, to_box
 from jaxsimrl.agents.ppo.learner import _minibatch
 from jaxsimrl.agents.ppo.losses import Batch, compute_gae, ppo_loss
 from jaxsimrl.agents.ppo.networks import initial_carry, make_network
@@ -84,8 +84,6 @@ def test_rollout_log_probs_equal_the_update_recomputation(rollout):
 
 
 def _log_prob(mean, log_std, u):
-    from jaxsimrl.agents.ppo.distribution import gaussian
-
     return gaussian(mean, log_std).log_prob(u)
 
 

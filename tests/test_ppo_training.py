@@ -37,6 +37,8 @@ def test_same_seed_same_metrics_different_seed_different(trainer):
 def test_run_chunk_stops_at_num_updates_and_matches_train(trainer):
     assert (trainer.num_updates, trainer.num_chunks) == (3, 2)
     state = trainer.init(jax.random.PRNGKey(7))
+    typed = trainer.init(jax.random.key(7))  # new-style keys give the same, plain-array state
+    np.testing.assert_array_equal(typed.rng, state.rng)
     state, m1 = trainer.run_chunk(state)
     state, m2 = trainer.run_chunk(state)
     assert len(m1["env_steps"]) == 2 and len(m2["env_steps"]) == 1 and int(state.update_step) == 3

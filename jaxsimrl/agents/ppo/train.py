@@ -61,13 +61,14 @@ class PPOTrainer:
                                   jnp.broadcast_to(box.low, box.shape), jnp.broadcast_to(box.high, box.shape),
                                   config.num_envs // len(self.devices), AXIS)
         self._specs = _state_specs()
+        self._init_jit = jax.jit(self._init)
         self._chunk = jax.jit(self._sharded(self._run_updates, config.updates_per_chunk))
         self.train = jax.jit(self._train)
 
     # ---- public API ------------------------------------------------------------------------------
     def init(self, key: jax.Array) -> RunnerState:
         """A fresh RunnerState, placed on the mesh (env fields sharded, the rest replicated)."""
-        state = jax.jit(self._init)(key)
+        state = self._init_jit(key)
         shardings = jax.tree.map(lambda spec: NamedSharding(self.mesh, spec), self._specs,
                                  is_leaf=lambda x: isinstance(x, P))
         return jax.tree.map(lambda spec_sharding, sub: jax.device_put(sub, spec_sharding),
