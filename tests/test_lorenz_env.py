@@ -205,6 +205,15 @@ def test_terminated_at_episode_end_truncated_only_by_a_shorter_cap(episode_steps
     assert not np.any(np.asarray(terminated) & np.asarray(truncated))
 
 
+
+def test_no_time_cap_by_default_so_a_longer_episode_is_never_truncated():
+    params = LorenzParams(episode_steps=4005, terminal_window=3)
+    _, (_, terminated, truncated, _, _) = rollout(params, fixed_start(params), jnp.zeros(3), 4005)
+    assert not np.any(np.asarray(truncated))
+    assert np.flatnonzero(np.asarray(terminated)).tolist() == [4004]
+    assert params.horizon == 4005 and params.replace(max_steps=7).horizon == 7
+
+
 # ----------------------------------------------------------------------------- action box
 
 

@@ -43,12 +43,17 @@ class LorenzParams:
     terminal_mean_threshold: float = -2.0
     terminal_window: int = 2000
     episode_steps: int = 4000
-    max_steps: int = 4000
+    max_steps: int = 2**31 - 1  # optional time cap below episode_steps (truncation); none by default
     random_init: bool = True
     init_low: float = -40.0
     init_high: float = 40.0
     init_state: jax.Array = struct.field(default_factory=lambda: jnp.array([1.0, 12.0, 9.0]))
     obs_scale: jax.Array = struct.field(default_factory=lambda: jnp.ones(6))
+
+    @property
+    def horizon(self) -> int:
+        """Steps in one episode: the task's ``episode_steps``, or the ``max_steps`` cap if shorter."""
+        return min(int(self.episode_steps), int(self.max_steps))
 
     @property
     def base(self) -> jax.Array:

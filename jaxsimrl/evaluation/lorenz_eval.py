@@ -52,7 +52,7 @@ def initial_states(env: Lorenz, params: LorenzParams, key: jax.Array, episodes: 
 
 def rollout(env: Lorenz, params: LorenzParams, act: ActFn, carry: Any, start: tuple[jax.Array, Any],
             key: jax.Array) -> Rollout:
-    """Run every episode of ``start`` for ``params.episode_steps`` steps under ``act`` (jitted)."""
+    """Run every episode of ``start`` for ``params.horizon`` steps under ``act`` (jitted)."""
 
     def run(carry: Any, start: tuple[jax.Array, Any], key: jax.Array) -> tuple[jax.Array, ...]:
         obs, state = start
@@ -64,7 +64,7 @@ def rollout(env: Lorenz, params: LorenzParams, act: ActFn, carry: Any, start: tu
             out = jax.vmap(env.step, in_axes=(None, 0, 0, None))(key, state, action, params)
             return (out.obs, out.state, carry), (out.state.xyz, out.info["speed"], out.reward)
 
-        times = jnp.arange(int(params.episode_steps))
+        times = jnp.arange(params.horizon)
         _, (xyz, speed, reward) = jax.lax.scan(step, (obs, state, carry), times)
         xyz = jnp.concatenate([state.xyz[None], xyz])
         return jnp.swapaxes(xyz, 0, 1), speed.T, reward.T
@@ -94,7 +94,7 @@ def compare(env: Lorenz, params: LorenzParams, act: ActFn, carry: Any, episodes:
     agent = rollout(env, params, act, carry, start, act_key)
     base = rollout(env, params, uncontrolled, (), start, act_key)
     v_th = float(params.v_threshold)
-    report: dict[str, Any] = {"episodes": episodes, "episode_steps": int(params.episode_steps), "seed": seed,
+    report: dict[str, Any] = {"episodes": episodes, "episode_steps": params.horizon, "seed": seed,
                               "v_threshold": v_th}
     report.update(episode_stats(agent.reward[1:].sum(axis=1), agent.speed[1:], v_th))
     report["uncontrolled"] = episode_stats(base.reward[1:].sum(axis=1), base.speed[1:], v_th)

@@ -13,12 +13,12 @@ from jaxsimrl.agents.ppo.policy import Policy
 
 def episode_returns(policy: Policy, state_or_params: Any, env: Any, env_params: Any, key: jax.Array,
                     num_episodes: int = 32, deterministic: bool = True) -> np.ndarray:
-    """Undiscounted returns of ``num_episodes`` episodes of ``env_params.max_steps`` steps each.
+    """Undiscounted returns of ``num_episodes`` episodes of ``env_params.horizon`` steps each.
 
     Episode i starts from ``env.reset(split(key, num_episodes)[i])``, so the same key gives the same
     initial states for any policy (fair before/after comparisons).
     """
-    steps = int(env_params.max_steps)
+    steps = env_params.horizon
     returns = _returns(policy, state_or_params, env, env_params, key, num_episodes, deterministic, steps)
     return np.asarray(returns)
 
