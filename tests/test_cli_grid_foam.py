@@ -12,7 +12,7 @@ import shutil
 import numpy as np
 import pytest
 
-from foam_bridge.config import FoamEnvConfig
+from foam_bridge.config import MESH_SCALE_USABLE_MIN, FoamEnvConfig
 from foam_bridge.grid import (
     GRID_COLUMNS,
     GridCell,
@@ -69,6 +69,12 @@ def test_bad_arguments_are_one_line_exit_2(capsys, tmp_path, argv, needle):
     assert code == 2
     assert err.count("\n") == 1 and needle in err
     assert not (tmp_path / "out").exists()
+
+
+def test_help_names_the_usable_mesh_scale_minimum(capsys):
+    code, _, out = run_cli(capsys, "--help")
+    assert code == 0
+    assert f">= {MESH_SCALE_USABLE_MIN:g}" in " ".join(out.split())
 
 
 def test_out_dir_that_is_a_file_is_rejected(capsys, tmp_path):

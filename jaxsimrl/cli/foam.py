@@ -32,6 +32,8 @@ def relaxation_factor(text: str) -> float:
 
 def register(subparsers: Any) -> None:
     """Add the ``grid-foam`` subcommand."""
+    from foam_bridge.config import MESH_SCALE_USABLE_MIN
+
     parser = subparsers.add_parser(
         "grid-foam",
         help="iterations to convergence of simpleFoam for every constant (alpha_u, alpha_p) on a grid",
@@ -43,7 +45,9 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--alpha-p", type=relaxation_factor, nargs="+", required=True, metavar="B",
                         help="pressure relaxation factors, each in (0, 1]")
     parser.add_argument("--mesh-scale", type=positive_float, default=1.0,
-                        help="mesh resolution factor (1.0 = 20,540 cells; default 1.0)")
+                        help=f"mesh resolution factor (1.0 = 20,540 cells; default 1.0). Use >= "
+                        f"{MESH_SCALE_USABLE_MIN:g}: coarser meshes diverge with the factors that are best "
+                        "on the full mesh, a different control problem")
     parser.add_argument("--pool", type=positive_int, default=1, help="worker processes (default 1)")
     parser.add_argument("--simple-variant", choices=("SIMPLE", "SIMPLEC"), default="SIMPLE")
     parser.add_argument("--inlet-velocity", type=positive_float, default=44.2,
