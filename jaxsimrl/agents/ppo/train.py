@@ -61,18 +61,16 @@ class PPOTrainer:
                                   jnp.broadcast_to(box.low, box.shape), jnp.broadcast_to(box.high, box.shape),
                                   config.num_envs // len(self.devices), AXIS)
         self._specs = _state_specs()
-        self._init_jit = jax.jit(self._init)
+        shardings = jax.tree.map(lambda spec: NamedSharding(self.mesh, spec), self._specs,
+                                 is_leaf=lambda x: isinstance(x, P))
+        self._init_jit = jax.jit(self._init, out_shardings=shardings)  # built in place on the mesh
         self._chunk = jax.jit(self._sharded(self._run_updates, config.updates_per_chunk))
         self.train = jax.jit(self._train)
 
     # ---- public API ------------------------------------------------------------------------------
     def init(self, key: jax.Array) -> RunnerState:
         """A fresh RunnerState, placed on the mesh (env fields sharded, the rest replicated)."""
-        state = self._init_jit(key)
-        shardings = jax.tree.map(lambda spec: NamedSharding(self.mesh, spec), self._specs,
-                                 is_leaf=lambda x: isinstance(x, P))
-        return jax.tree.map(lambda spec_sharding, sub: jax.device_put(sub, spec_sharding),
-                            shardings, state, is_leaf=lambda x: isinstance(x, NamedSharding))
+        return self._init_jit(key)
 
     def run_chunk(self, state: RunnerState) -> tuple[RunnerState, dict[str, jax.Array]]:
         """Run up to ``updates_per_chunk`` updates, never past ``num_updates``.
