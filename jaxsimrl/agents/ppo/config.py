@@ -9,6 +9,7 @@ benchmarks/RESULTS_ppo.md for what was tried.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -64,23 +65,11 @@ class PPOConfig:
     # ---- validation / serialisation ------------------------------------------------------------
     def validate(self) -> PPOConfig:
         """Raise ValueError with a one-line message naming the first bad field; return self."""
-        _check_positive_ints(self, ("num_envs", "steps_per_update", "total_steps", "lstm_size",
-                                    "update_epochs", "num_minibatches", "seq_len", "updates_per_chunk"))
-        _check_positive_floats(self, ("lr", "max_grad_norm", "clip_eps", "obs_clip", "reward_scale"))
-        _check_unit_interval(self, ("gamma", "gae_lambda"))
-        _check_non_negative(self, ("ent_coef", "vf_coef"))
-        if self.network not in NETWORKS:
-            raise ValueError(f"network must be one of {NETWORKS}, got {self.network!r}")
-        if self.activation not in ACTIVATIONS:
-            raise ValueError(f"activation must be one of {ACTIVATIONS}, got {self.activation!r}")
-        if not self.hidden_sizes or any(not _is_int(h) or h <= 0 for h in self.hidden_sizes):
-            raise ValueError(f"hidden_sizes must be a non-empty list of positive ints, "
-                             f"got {self.hidden_sizes!r}")
-        if not isinstance(self.init_log_std, int | float) or not -10 <= self.init_log_std <= 2:
-            raise ValueError(f"init_log_std must be a number in [-10, 2], got {self.init_log_std!r}")
-        for flag in ("anneal_lr", "clip_value", "normalize_advantages", "normalize_obs"):
-            if not isinstance(getattr(self, flag), bool):
-                raise ValueError(f"{flag} must be true or false, got {getattr(self, flag)!r}")
+        for names, ok, what in _FIELD_RULES:
+            for name in names:
+                value = getattr(self, name)
+                if not ok(value):
+                    raise ValueError(f"{name} must be {what}, got {value!r}")
         self._validate_divisibility()
         return self
 
@@ -130,29 +119,20 @@ def _is_number(value: Any) -> bool:
     return isinstance(value, int | float) and not isinstance(value, bool)
 
 
-def _check_positive_ints(cfg: PPOConfig, names: tuple[str, ...]) -> None:
-    for name in names:
-        value = getattr(cfg, name)
-        if not _is_int(value) or value <= 0:
-            raise ValueError(f"{name} must be a positive integer, got {value!r}")
-
-
-def _check_positive_floats(cfg: PPOConfig, names: tuple[str, ...]) -> None:
-    for name in names:
-        value = getattr(cfg, name)
-        if not _is_number(value) or not 0 < value < float("inf"):
-            raise ValueError(f"{name} must be a positive number, got {value!r}")
-
-
-def _check_unit_interval(cfg: PPOConfig, names: tuple[str, ...]) -> None:
-    for name in names:
-        value = getattr(cfg, name)
-        if not _is_number(value) or not 0 <= value <= 1:
-            raise ValueError(f"{name} must be a number in [0, 1], got {value!r}")
-
-
-def _check_non_negative(cfg: PPOConfig, names: tuple[str, ...]) -> None:
-    for name in names:
-        value = getattr(cfg, name)
-        if not _is_number(value) or not 0 <= value < float("inf"):
-            raise ValueError(f"{name} must be a non-negative number, got {value!r}")
+_INF = float("inf")
+# (fields, test, what the message says they must be), checked in this order
+_FIELD_RULES: tuple[tuple[tuple[str, ...], Callable[[Any], bool], str], ...] = (
+    (("num_envs", "steps_per_update", "total_steps", "lstm_size", "update_epochs", "num_minibatches",
+      "seq_len", "updates_per_chunk"), lambda v: _is_int(v) and v > 0, "a positive integer"),
+    (("lr", "max_grad_norm", "clip_eps", "obs_clip", "reward_scale"),
+     lambda v: _is_number(v) and 0 < v < _INF, "a positive number"),
+    (("gamma", "gae_lambda"), lambda v: _is_number(v) and 0 <= v <= 1, "a number in [0, 1]"),
+    (("ent_coef", "vf_coef"), lambda v: _is_number(v) and 0 <= v < _INF, "a non-negative number"),
+    (("network",), lambda v: v in NETWORKS, f"one of {NETWORKS}"),
+    (("activation",), lambda v: v in ACTIVATIONS, f"one of {ACTIVATIONS}"),
+    (("hidden_sizes",), lambda v: isinstance(v, tuple | list) and bool(v)
+     and all(_is_int(h) and h > 0 for h in v), "a non-empty list of positive ints"),
+    (("init_log_std",), lambda v: _is_number(v) and -10 <= v <= 2, "a number in [-10, 2]"),
+    (("anneal_lr", "clip_value", "normalize_advantages", "normalize_obs"), lambda v: isinstance(v, bool),
+     "true or false"),
+)
