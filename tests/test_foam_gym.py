@@ -1,5 +1,6 @@
 """The gymnasium ids registered by ``import foam_bridge``: the single env passes check_env, the pooled
-vector env auto-resets in SAME_STEP mode. Real simpleFoam on the coarse mesh, low iteration cap."""
+vector env auto-resets in SAME_STEP mode. Real simpleFoam on the smallest usable mesh (mesh_scale 0.4), low
+iteration cap."""
 
 from __future__ import annotations
 
@@ -16,7 +17,7 @@ from gymnasium.vector import AutoresetMode
 import foam_bridge
 
 HAVE_OPENFOAM = shutil.which("simpleFoam") is not None
-COARSE = {"mesh_scale": 0.25, "simple_variant": "SIMPLEC", "relax_k_omega": 0.8, "max_iterations": 200,
+COARSE = {"mesh_scale": 0.4, "simple_variant": "SIMPLEC", "relax_k_omega": 0.8, "max_iterations": 200,
           "step_timeout_s": 60.0}
 
 

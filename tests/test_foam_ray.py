@@ -1,5 +1,5 @@
 """The Ray backend against a real local Ray instance: same seeds and actions -> same iteration counts
-as the local process pool. Real simpleFoam, coarse mesh."""
+as the local process pool. Real simpleFoam, the smallest usable mesh (0.4)."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from foam_bridge.batched import BatchedFoamEnv
 from foam_bridge.config import FoamEnvConfig
 
 HAVE_OPENFOAM = shutil.which("simpleFoam") is not None
-COARSE = FoamEnvConfig(mesh_scale=0.25, simple_variant="SIMPLEC", relax_k_omega=0.8, max_iterations=200,
+COARSE = FoamEnvConfig(mesh_scale=0.4, simple_variant="SIMPLEC", relax_k_omega=0.8, max_iterations=200,
                        step_timeout_s=60.0)
 # Different factors per env and per step, so a mix-up of envs or steps would change the residuals; all
 # in the region that neither crashes nor diverges on this mesh within the cap.
