@@ -55,8 +55,7 @@ def run_env_episode(env: FoamCaseEnv) -> dict[str, float]:
 def run_reference(env: FoamCaseEnv, directory: Path, keep_functions: bool) -> dict[str, float]:
     """simpleFoam start to end on a fresh copy of the episode case, no pause."""
     foam_case.write_episode_case(env.base, directory, env.cfg, U_REF)
-    relaxation = foam_case.case_relaxation(directory)
-    foam_case.make_uninterrupted(directory, foam_case.relaxation_text(relaxation, env.cfg, *ACTION))
+    foam_case.make_uninterrupted(directory, env.cfg, *ACTION)
     if not keep_functions:
         with FoamFile(directory / "system" / "controlDict") as control:
             del control["functions"]

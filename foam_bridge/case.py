@@ -161,14 +161,15 @@ def write_episode_case(base: Path, dest: Path, cfg: FoamEnvConfig, inlet_velocit
     os.mkfifo(dest / "system" / RELAXATION_FIFO)
 
 
-def make_uninterrupted(case: Path, relaxation: bytes) -> None:
+def make_uninterrupted(case: Path, cfg: FoamEnvConfig, alpha_u: float, alpha_p: float) -> None:
     """Turn an episode case into a plain one: constant factors in a regular file, no pause.
 
-    The reference run for "chunked == uninterrupted" and for the overhead benchmark.
+    The factors are written as the bridge would feed them (:func:`relaxation_text` on the case's own
+    factors). The reference run for "chunked == uninterrupted" and for the overhead benchmark.
     """
     fifo = case / "system" / RELAXATION_FIFO
     fifo.unlink()
-    fifo.write_bytes(relaxation)
+    fifo.write_bytes(relaxation_text(case_relaxation(case), cfg, alpha_u, alpha_p))
     with FoamFile(case / "system" / "controlDict") as control:
         del control["functions"][PAUSE_FUNCTION]
 

@@ -75,8 +75,7 @@ def test_chunked_equals_uninterrupted_and_rewards_sum_to_minus_iterations(tmp_pa
         chunked = env.parser.history
         reference_case = tmp_path / "reference"
         foam_case.write_episode_case(env.base, reference_case, cfg, U_REF)
-        foam_case.make_uninterrupted(
-            reference_case, foam_case.relaxation_text(foam_case.case_relaxation(reference_case), cfg, *BEST))
+        foam_case.make_uninterrupted(reference_case, cfg, *BEST)
         reference = LogParser(foam_case.CELLS_FUNCTION, foam_case.INLET_FUNCTION)
         code, _ = run_to_end(reference_case, env.openfoam, reference, timeout_s=120)
     finally:
