@@ -117,7 +117,8 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--interval", type=int, default=100)
     parser.add_argument("--relax-k-omega", type=float, default=None,
-                        help="fixed k/omega relaxation (NOTES' SIMPLEC table used 0.8); default: alpha_u")
+                        help="fixed k/omega relaxation (RESULTS_foam.md's second table and the grid study "
+                        "use 0.8); default: alpha_u")
     parser.add_argument("--out", type=Path, default=None, help="write the results as JSON here")
     args = parser.parse_args()
     results = {"date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()), "cpus": os.cpu_count(),
