@@ -1,6 +1,6 @@
 """Episodes per hour of BatchedFoamEnv on the local pool, for several pool sizes.
 
-    python benchmarks/bench_foam_pool.py --mesh-scale 0.25 --pools 1 2 --episodes 8
+    python benchmarks/bench_foam_pool.py --mesh-scale 0.5 --pools 1 2 --episodes 8
     python benchmarks/bench_foam_pool.py --mesh-scale 1.0 --pools 1 2 --episodes 4 --policy constant
 
 The same batch (``--num-envs`` cases, default 2) runs until ``--episodes`` episodes have ended in
@@ -20,7 +20,7 @@ import time
 import numpy as np
 
 from foam_bridge.batched import BatchedFoamEnv
-from foam_bridge.config import FoamEnvConfig
+from foam_bridge.config import MESH_SCALE_USABLE_MIN, FoamEnvConfig
 
 
 def measure(cfg: FoamEnvConfig, num_envs: int, pool: int, episodes: int, policy: str, seed: int) -> dict:
@@ -51,7 +51,8 @@ def measure(cfg: FoamEnvConfig, num_envs: int, pool: int, episodes: int, policy:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--mesh-scale", type=float, default=0.25)
+    parser.add_argument("--mesh-scale", type=float, default=MESH_SCALE_USABLE_MIN,
+                        help=f"mesh resolution (default {MESH_SCALE_USABLE_MIN:g}: the usable minimum)")
     parser.add_argument("--pools", type=int, nargs="+", default=[1, 2])
     parser.add_argument("--num-envs", type=int, default=2)
     parser.add_argument("--episodes", type=int, default=8)
