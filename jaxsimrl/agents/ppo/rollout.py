@@ -150,12 +150,18 @@ def collect(ctx: RolloutContext, runner: RunnerState, key: jax.Array
     return runner, transitions, carries, jax.tree.map(jnp.sum, stats)
 
 
+def critic_value(ctx: RolloutContext, params: Any, normalizer: NormalizerState, carry: Any,
+                 raw_obs: jax.Array, starts: jax.Array) -> jax.Array:
+    """V(raw_obs) of every local env: one network step from ``carry`` (the carry it leaves is dropped)."""
+    obs = observe(ctx, normalizer, raw_obs)
+    return ctx.apply_fn(params, carry, obs[None], starts[None])[3][0]
+
+
 def _bootstrap_value(ctx: RolloutContext, runner: RunnerState, carry: Any, step: Any) -> jax.Array:
     """V(final obs) of the steps that truncated; skipped (zeros) when no env truncated."""
     def value_of_final_obs() -> jax.Array:
-        final = observe(ctx, runner.normalizer, step.obs)
-        no_start = jnp.zeros_like(runner.starts)
-        value = ctx.apply_fn(runner.params, carry, final[None], no_start[None])[3][0]
+        value = critic_value(ctx, runner.params, runner.normalizer, carry, step.obs,
+                             jnp.zeros_like(runner.starts))
         return jnp.where(step.truncated, value, 0.0)
 
     # under vmap/shard_map this stays a real branch: the extra forward pass runs only when needed

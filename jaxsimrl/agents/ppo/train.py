@@ -24,7 +24,7 @@ from jaxsimrl.agents.ppo import normalizer as norm
 from jaxsimrl.agents.ppo.config import PPOConfig
 from jaxsimrl.agents.ppo.learner import learn, make_optimizer
 from jaxsimrl.agents.ppo.networks import initial_carry, make_network
-from jaxsimrl.agents.ppo.rollout import RolloutContext, RunnerState, collect, observe
+from jaxsimrl.agents.ppo.rollout import RolloutContext, RunnerState, collect, critic_value
 
 AXIS = "envs"
 _NORMALIZER_SEED_SAMPLES = 1024  # reset observations that seed the normaliser before the first update
@@ -111,8 +111,7 @@ class PPOTrainer:
         rng, rollout_key, learn_key = jax.random.split(state.rng, 3)
         lr = self.schedule(state.update_step * cfg.update_epochs * cfg.num_minibatches)
         state, transitions, carries, episodes = collect(ctx, state, rollout_key)
-        last_obs = observe(ctx, state.normalizer, state.obs)
-        last_value = self.network.apply(state.params, state.carry, last_obs[None], state.starts[None])[3][0]
+        last_value = critic_value(ctx, state.params, state.normalizer, state.carry, state.obs, state.starts)
         params, opt_state, metrics = learn(ctx, self.tx, state.params, state.opt_state, transitions, carries,
                                            last_value, learn_key)
         normalizer = state.normalizer
