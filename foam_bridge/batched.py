@@ -34,9 +34,9 @@ from typing import Any, NamedTuple
 import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 
-from foam_bridge.backends import BAD_INPUT_ERRORS, WORKER_DIED, Reply, Request, make_backend
+from foam_bridge.backends import BAD_INPUT_ERRORS, WORKER_DIED, Reply, Request, make_backend, validate_pool
 from foam_bridge.config import FoamEnvConfig, failure_reward  # re-exported: the env's own penalty
-from foam_bridge.env import FoamEnv, seed_from_key
+from foam_bridge.env import action_spec, observation_spec, seed_from_key
 from jaxsimrl.envs.protocol import BoxSpec, Step
 
 SEED_BOUND = 2**31 - 1
@@ -81,18 +81,17 @@ class BatchedFoamEnv:
         seed: int | list[int] | None = None,
     ) -> None:
         self.cfg = cfg.validate()
+        pool = validate_pool(num_envs, pool)  # bad sizes fail before anything is created
         self.num_envs = num_envs
-        pool = min(num_envs, os.cpu_count() or 1) if pool is None else pool
+        self.observation_spec = observation_spec(cfg)
+        self.action_spec = action_spec(cfg)
+        self._batcher = _InfoBatcher(num_envs)
+        self._streams = self._seed_streams(seed)
+        self._tallies = [_Tally(np.zeros(cfg.observation_size, np.float32)) for _ in range(num_envs)]
         chosen = work_dir if work_dir is not None else cfg.work_dir
         self._temp_dir = chosen is None
         self.work_dir = Path(tempfile.mkdtemp(prefix="foam_bridge_")) if chosen is None else Path(chosen)
         self.work_dir.mkdir(parents=True, exist_ok=True)
-        spaces = FoamEnv()  # the single env's protocol form: its spaces are functions of the config
-        self.observation_spec = spaces.observation_space(cfg)
-        self.action_spec = spaces.action_space(cfg)
-        self._batcher = _InfoBatcher(num_envs)
-        self._streams = self._seed_streams(seed)
-        self._tallies = [_Tally(np.zeros(cfg.observation_size, np.float32)) for _ in range(num_envs)]
         try:
             self.backend = make_backend(backend, cfg, num_envs, pool, self.work_dir, ray_address)
         except BaseException:

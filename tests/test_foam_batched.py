@@ -42,6 +42,15 @@ def test_validate_pool_rejects_bad_sizes():
             validate_pool(num_envs, pool)
 
 
+def test_bad_batch_sizes_are_value_errors_before_anything_is_created(tmp_path):
+    assert validate_pool(3, None) == min(3, os.cpu_count() or 1)
+    work_dir = tmp_path / "work"
+    for num_envs in (-1, 1.5, "2"):
+        with pytest.raises(ValueError, match="num_envs"):
+            BatchedFoamEnv(COARSE, num_envs, work_dir=work_dir)
+    assert not work_dir.exists()
+
+
 def test_failure_reward_is_the_rest_of_the_cap_or_the_penalty():
     assert failure_reward(FoamEnvConfig(max_iterations=4000), 1269) == -2731.0
     assert failure_reward(FoamEnvConfig(max_iterations=4000, failure_penalty=-2000.0), 1269) == -2000.0

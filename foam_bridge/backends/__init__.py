@@ -23,7 +23,6 @@ def make_backend(
     name: str, cfg: Any, num_envs: int, pool: int, work_dir: Path, ray_address: str | None = None
 ) -> Backend:
     """Start ``pool`` workers of backend ``name`` for ``num_envs`` envs with case dirs under ``work_dir``."""
-    validate_pool(num_envs, pool)
     if name == "local":
         if ray_address is not None:
             raise ValueError("ray_address is only meaningful with backend='ray'")

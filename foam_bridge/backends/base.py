@@ -10,6 +10,7 @@ are rebuilt on their next request. The other workers are not touched.
 
 from __future__ import annotations
 
+import os
 from abc import ABC, abstractmethod
 from typing import Any
 
@@ -20,12 +21,18 @@ WORKER_DIED = "worker died"
 RESET_ALLOWANCE_S = 300.0
 
 
-def validate_pool(num_envs: int, pool: int) -> None:
-    """One-line ValueError unless 1 <= pool <= num_envs."""
+def validate_pool(num_envs: int, pool: int | None = None) -> int:
+    """The pool size: ``pool``, or for None one worker per env up to the CPU count.
+
+    One-line ValueError unless num_envs is a positive integer and 1 <= pool <= num_envs.
+    """
     if isinstance(num_envs, bool) or not isinstance(num_envs, int) or num_envs < 1:
         raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
+    if pool is None:
+        return min(num_envs, os.cpu_count() or 1)
     if isinstance(pool, bool) or not isinstance(pool, int) or not 1 <= pool <= num_envs:
         raise ValueError(f"pool must be an integer in [1, num_envs={num_envs}], got {pool!r}")
+    return pool
 
 
 def batch_deadline_s(cfg: Any, requests: list[Request]) -> float:
