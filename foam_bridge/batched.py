@@ -25,17 +25,15 @@ from __future__ import annotations
 
 import os
 import shutil
-import tempfile
 import time
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any, NamedTuple
 
 import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 
 from foam_bridge.backends import BAD_INPUT_ERRORS, WORKER_DIED, Reply, Request, make_backend, validate_pool
-from foam_bridge.config import FoamEnvConfig, failure_reward  # re-exported: the env's own penalty
+from foam_bridge.config import FoamEnvConfig, failure_reward, work_root  # failure_reward: re-exported
 from foam_bridge.env import action_spec, observation_spec, seed_from_key
 from jaxsimrl.envs.protocol import BoxSpec, Step
 
@@ -88,10 +86,7 @@ class BatchedFoamEnv:
         self._batcher = _InfoBatcher(num_envs)
         self._streams = self._seed_streams(seed)
         self._tallies = [_Tally(np.zeros(cfg.observation_size, np.float32)) for _ in range(num_envs)]
-        chosen = work_dir if work_dir is not None else cfg.work_dir
-        self._temp_dir = chosen is None
-        self.work_dir = Path(tempfile.mkdtemp(prefix="foam_bridge_")) if chosen is None else Path(chosen)
-        self.work_dir.mkdir(parents=True, exist_ok=True)
+        self.work_dir, self._temp_dir = work_root(cfg, work_dir)
         try:
             self.backend = make_backend(backend, cfg, num_envs, pool, self.work_dir, ray_address)
         except BaseException:

@@ -15,6 +15,7 @@ construction.
 from __future__ import annotations
 
 import math
+import tempfile
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -180,6 +181,21 @@ def failure_reward(cfg: FoamEnvConfig, iterations_before: int) -> float:
     if cfg.failure_penalty is not None:
         return float(cfg.failure_penalty)
     return -float(max(cfg.max_iterations - iterations_before, 0))
+
+
+def work_root(cfg: FoamEnvConfig, work_dir: Path | str | None = None,
+              prefix: str = "foam_bridge_") -> tuple[Path, bool]:
+    """The parent of the case directories and whether it is a fresh temporary directory.
+
+    ``work_dir``, else ``cfg.work_dir`` (created if missing), else a new temporary directory named
+    ``prefix...``, which the caller removes when it closes (unless ``cfg.keep_cases``).
+    """
+    chosen = work_dir if work_dir is not None else cfg.work_dir
+    if chosen is None:
+        return Path(tempfile.mkdtemp(prefix=prefix)), True
+    root = Path(chosen)
+    root.mkdir(parents=True, exist_ok=True)
+    return root, False
 
 
 def _is_int(value: object) -> bool:

@@ -41,7 +41,6 @@ import fcntl
 import os
 import shutil
 import signal
-import tempfile
 import time
 from collections import deque
 from dataclasses import dataclass
@@ -51,7 +50,7 @@ from typing import Any, BinaryIO
 import numpy as np
 
 from foam_bridge import case as foam_case
-from foam_bridge.config import OBSERVATION_BOUND, FoamEnvConfig, failure_reward
+from foam_bridge.config import OBSERVATION_BOUND, FoamEnvConfig, failure_reward, work_root
 from foam_bridge.logparse import LogParser, field_residual
 from foam_bridge.openfoam import find_openfoam
 from foam_bridge.solver import DIVERGED, EXITED, HUNG, PAUSED, FoamSolver
@@ -99,9 +98,9 @@ class FoamCaseEnv:
         self.cfg = cfg.validate()
         self.env_id = env_id
         self.openfoam = find_openfoam(cfg.openfoam_path)
-        parent = work_dir if work_dir is not None else cfg.work_dir
-        self._tmp = None if parent is not None else tempfile.mkdtemp(prefix="foam_bridge_")
-        self.root = Path(parent if parent is not None else self._tmp) / f"env_{env_id}"
+        parent, temporary = work_root(cfg, work_dir)
+        self._tmp = parent if temporary else None
+        self.root = parent / f"env_{env_id}"
         self._lock = _claim_directory(self.root)
         self.base = self.root / "base"
         self.case_dir = self.root / "episode"

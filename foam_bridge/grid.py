@@ -20,18 +20,16 @@ import io
 import math
 import os
 import shutil
-import tempfile
 import time
 from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from foam_bridge.backends import BAD_INPUT_ERRORS, WORKER_DIED, Reply, Request, make_backend
-from foam_bridge.config import FoamEnvConfig
+from foam_bridge.config import FoamEnvConfig, work_root
 from jaxsimrl.runs.atomic import atomic_write_bytes, atomic_write_text
 
 GRID_COLUMNS = ("alpha_u", "alpha_p", "iterations", "outcome", "wall_time_s")
@@ -99,15 +97,14 @@ def run_grid(
     cfg = grid_config(cfg, alpha_u, alpha_p)
     pairs = [(u, p) for u in alpha_u for p in alpha_p]
     slots = min(pool, len(pairs))
-    chosen = work_dir if work_dir is not None else cfg.work_dir
-    root = Path(tempfile.mkdtemp(prefix="foam_grid_")) if chosen is None else Path(chosen)
+    root, temporary = work_root(cfg, work_dir, prefix="foam_grid_")
     backend = make_backend("local", cfg, slots, slots, root)
     results: list[GridCell | None] = [None] * len(pairs)
     try:
         _drive(backend, pairs, slots, results, on_cell or (lambda cell: None))
     finally:
         backend.close()
-        if chosen is None:
+        if temporary and not cfg.keep_cases:
             shutil.rmtree(root, ignore_errors=True)
     return results  # type: ignore[return-value]
 
