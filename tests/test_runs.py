@@ -7,6 +7,7 @@ import io
 import json
 import math
 import os
+import shutil
 import signal
 import stat
 
@@ -145,6 +146,21 @@ def test_checkpoint_restore_into_a_different_layout_is_a_one_line_value_error(tm
             checkpoints.restore(wrong)
     with pytest.raises(ValueError, match="no checkpoint"):
         Checkpoints(tmp_path / "nothing", writable=False)
+
+
+def test_damaged_checkpoint_is_a_one_line_value_error(tmp_path):
+    with Checkpoints(tmp_path / "checkpoints") as checkpoints:
+        checkpoints.save(1, _tree(1), {"update": 1})
+        checkpoints.save(2, _tree(2), {"update": 2})
+    shutil.rmtree(tmp_path / "checkpoints" / "2" / "meta")
+    (tmp_path / "checkpoints" / "1" / "meta" / "metadata").write_text("{torn")
+    with Checkpoints(tmp_path / "checkpoints", writable=False) as checkpoints:
+        for read in (checkpoints.read_meta, lambda: checkpoints.restore(_tree(1))):
+            with pytest.raises(ValueError, match=r"checkpoint 2 .* is damaged \(no meta item\)"):
+                read()
+        with pytest.raises(ValueError, match=r"checkpoint 1 .* is damaged \(.+\); remove it") as error:
+            checkpoints.read_meta(step=1)
+    assert "\n" not in str(error.value)
 
 
 # ---- Ctrl-C and progress ----------------------------------------------------------------------------

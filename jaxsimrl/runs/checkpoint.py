@@ -66,26 +66,50 @@ class Checkpoints:
     def read_meta(self, step: int | None = None) -> dict[str, Any]:
         """The JSON record of checkpoint ``step`` (default: the latest), without loading the state."""
         step = self.latest_step() if step is None else step
-        restored = self._manager.restore(step, args=ocp.args.Composite(**{META_ITEM: ocp.args.JsonRestore()}))
+        self._item_metadata(step, META_ITEM)
+        restored = self._restore(step, {META_ITEM: ocp.args.JsonRestore()})
         return dict(restored[META_ITEM])
 
     def restore(self, abstract_state: Any, step: int | None = None) -> tuple[Any, dict[str, Any]]:
         """Checkpoint ``step`` (default: the latest) restored into the structure of ``abstract_state``
         (e.g. a freshly initialised state, or ``jax.eval_shape`` of one); returns ``(state, meta)``.
-        With ``abstract_state=None`` the state comes back as saved on disk: nested dicts of arrays."""
+        With ``abstract_state=None`` the state comes back as saved on disk: nested dicts of arrays.
+        A damaged or incompatible checkpoint is a one-line ValueError."""
         step = self.latest_step() if step is None else step
+        metadata = self._item_metadata(step, STATE_ITEM, META_ITEM)
         if abstract_state is not None:
-            self._check_compatible(step, abstract_state)
-        args = ocp.args.Composite(
-            **{STATE_ITEM: ocp.args.StandardRestore(abstract_state), META_ITEM: ocp.args.JsonRestore()}
-        )
-        restored = self._manager.restore(step, args=args)
+            self._check_compatible(step, metadata[STATE_ITEM].tree, abstract_state)
+        restored = self._restore(
+            step, {STATE_ITEM: ocp.args.StandardRestore(abstract_state), META_ITEM: ocp.args.JsonRestore()})
         return restored[STATE_ITEM], dict(restored[META_ITEM])
 
-    def _check_compatible(self, step: int, abstract_state: Any) -> None:
-        """Compare leaf names and shapes before restoring: a failed orbax restore leaves orphaned
-        coroutines that print tracebacks at exit, which would bury the one-line error."""
-        stored = ocp.tree.to_flat_dict(self._manager.item_metadata(step)[STATE_ITEM].tree, sep=".")
+    # Everything below is checked before orbax restores anything: a failed orbax restore leaves
+    # orphaned coroutines that print tracebacks at exit, which would bury the one-line error.
+    def _item_metadata(self, step: int, *items: str) -> Any:
+        """orbax's metadata of checkpoint ``step``, which must have ``items``."""
+        try:
+            metadata = self._manager.item_metadata(step)
+        except Exception as err:  # orbax raises anything from KeyError to a bare Exception
+            raise self._damaged(step, err) from None
+        missing = [item for item in items if item not in metadata]
+        if missing:
+            raise self._damaged(step, f"no {'/'.join(missing)} item")
+        return metadata
+
+    def _restore(self, step: int, items: dict[str, Any]) -> Any:
+        try:
+            return self._manager.restore(step, args=ocp.args.Composite(**items))
+        except Exception as err:  # a truncated or edited file: a page of TensorStore details
+            raise self._damaged(step, err) from None
+
+    def _damaged(self, step: int, reason: object) -> ValueError:
+        text = (str(reason).splitlines() or [type(reason).__name__])[0][:200]
+        return ValueError(f"checkpoint {step} in {self.directory} is damaged ({text}); remove it to fall "
+                          f"back on the one before")
+
+    def _check_compatible(self, step: int, stored_tree: Any, abstract_state: Any) -> None:
+        """Compare the leaf names and shapes of the stored state with those of ``abstract_state``."""
+        stored = ocp.tree.to_flat_dict(stored_tree, sep=".")
         wanted = ocp.tree.to_flat_dict(jax.eval_shape(lambda: abstract_state), sep=".")
         where = f"checkpoint {step} in {self.directory}"
         if set(stored) != set(wanted):
