@@ -18,7 +18,8 @@ from flax import struct
 from jaxsimrl.agents.ppo import distribution
 from jaxsimrl.agents.ppo.config import PPOConfig
 from jaxsimrl.agents.ppo.networks import Carry, initial_carry, make_network
-from jaxsimrl.agents.ppo.normalizer import NormalizerState, normalize
+from jaxsimrl.agents.ppo.normalizer import NormalizerState
+from jaxsimrl.agents.ppo.rollout import observe
 
 
 @struct.dataclass
@@ -45,8 +46,7 @@ class Policy:
     def act(self, state_or_params: Any, obs: jax.Array, carry: Carry, done: jax.Array, key: jax.Array,
             deterministic: bool = True) -> tuple[jax.Array, Carry]:
         """Actions (B, action_dim) inside the box and the next carry."""
-        if self.config.normalize_obs:
-            obs = normalize(state_or_params.normalizer, obs, self.config.obs_clip)
+        obs = observe(self.config, state_or_params.normalizer, obs)
         carry, mean, log_std, _ = self.network.apply(state_or_params.params, carry, obs[None], done[None])
         mean = mean[0]
         if deterministic:

@@ -20,6 +20,7 @@ import jax.numpy as jnp
 from flax import struct
 
 from jaxsimrl.agents.ppo import distribution
+from jaxsimrl.agents.ppo.config import PPOConfig
 from jaxsimrl.agents.ppo.normalizer import NormalizerState, normalize
 
 
@@ -90,15 +91,15 @@ def local_keys(ctx: RolloutContext, key: jax.Array) -> jax.Array:
     return local_slice(ctx, jax.random.split(key, ctx.config.num_envs))
 
 
-def observe(ctx: RolloutContext, normalizer: NormalizerState, obs: jax.Array) -> jax.Array:
-    """What the network sees: the (optionally) normalised observation."""
-    return normalize(normalizer, obs, ctx.config.obs_clip) if ctx.config.normalize_obs else obs
+def observe(config: PPOConfig, normalizer: NormalizerState, obs: jax.Array) -> jax.Array:
+    """What the network sees, in training and when acting: the (optionally) normalised observation."""
+    return normalize(normalizer, obs, config.obs_clip) if config.normalize_obs else obs
 
 
 def _env_step(ctx: RolloutContext, runner: RunnerState, key: jax.Array
               ) -> tuple[RunnerState, Transition, EpisodeStats]:
     act_key, step_key, reset_key = jax.random.split(key, 3)
-    obs = observe(ctx, runner.normalizer, runner.obs)
+    obs = observe(ctx.config, runner.normalizer, runner.obs)
     carry, mean, log_std, value = ctx.apply_fn(runner.params, runner.carry, obs[None], runner.starts[None])
     sample = jax.vmap(distribution.sample, in_axes=(0, 0, None))
     u, log_prob = sample(local_keys(ctx, act_key), mean[0], log_std)
@@ -153,7 +154,7 @@ def collect(ctx: RolloutContext, runner: RunnerState, key: jax.Array
 def critic_value(ctx: RolloutContext, params: Any, normalizer: NormalizerState, carry: Any,
                  raw_obs: jax.Array, starts: jax.Array) -> jax.Array:
     """V(raw_obs) of every local env: one network step from ``carry`` (the carry it leaves is dropped)."""
-    obs = observe(ctx, normalizer, raw_obs)
+    obs = observe(ctx.config, normalizer, raw_obs)
     return ctx.apply_fn(params, carry, obs[None], starts[None])[3][0]
 
 
