@@ -107,7 +107,7 @@ class FoamCaseEnv:
         try:
             foam_case.build_base_case(cfg, self.base, self.openfoam)
         except BaseException:
-            self._lock.close()
+            self._release_directories()
             raise
         self._rng = np.random.default_rng(env_id)
         self._solver: FoamSolver | None = None
@@ -192,12 +192,16 @@ class FoamCaseEnv:
         self._stop_solver()
         self._done = True
         if not self._closed:
-            if not self.cfg.keep_cases:
-                shutil.rmtree(self.root, ignore_errors=True)
-                if self._tmp is not None:
-                    shutil.rmtree(self._tmp, ignore_errors=True)
-            self._lock.close()  # after the removal: nobody else may build in the directory before
+            self._release_directories()
         self._closed = True
+
+    def _release_directories(self) -> None:
+        """Remove the env's directories (unless keep_cases), then drop its lock."""
+        if not self.cfg.keep_cases:
+            shutil.rmtree(self.root, ignore_errors=True)
+            if self._tmp is not None:
+                shutil.rmtree(self._tmp, ignore_errors=True)
+        self._lock.close()  # after the removal: nobody else may build in the directory before
 
     @property
     def parser(self) -> LogParser:

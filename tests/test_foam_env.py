@@ -257,6 +257,7 @@ def test_user_case_with_a_renamed_inlet_patch(tmp_path: Path) -> None:
         field.write_text(field.read_text().replace("    inlet\n    {", "    entry\n    {"))
     with pytest.raises(CaseError, match="no patch named 'inlet'.*entry"):
         FoamCaseEnv(_cfg(tmp_path / "wrong", case_dir=user_case))
+    assert not (tmp_path / "wrong" / "env_0").exists()
     env = FoamCaseEnv(_cfg(tmp_path / "right", case_dir=user_case, inlet_patch="entry"))
     try:
         obs, _ = env.reset(options={"inlet_velocity": 50.0})
@@ -279,6 +280,7 @@ def test_broken_user_case_is_a_one_line_value_error(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match=r"missing 0/U") as error:
         FoamCaseEnv(_cfg(tmp_path, case_dir=user_case))
     assert "\n" not in str(error.value)
+    assert not (tmp_path / "env_0").exists()  # a failed construction leaves nothing behind
 
 
 def test_seeded_inlet_velocity_and_residual_features(tmp_path: Path) -> None:
