@@ -10,7 +10,6 @@ the untrained policy's return from the same initial states.
 
 from __future__ import annotations
 
-import argparse
 import json
 import time
 from pathlib import Path
@@ -19,6 +18,7 @@ import jax
 import numpy as np
 
 from jaxsimrl.agents.ppo import PPOConfig, episode_returns, make_policy, make_train
+from jaxsimrl.cli.errors import OneLineArgumentParser, positive_int
 from jaxsimrl.envs.lorenz import Lorenz
 from jaxsimrl.runs.atomic import atomic_write_json
 
@@ -43,19 +43,23 @@ def run(config: PPOConfig, seed: int, episodes: int) -> dict:
     eval_key = jax.random.PRNGKey(EVAL_KEY)
     final = episode_returns(policy, state, env, params, eval_key, episodes)
     before = episode_returns(policy, initial, env, params, eval_key, episodes)
-    return {"seed": seed, "wall_s": wall, "steps_per_s": config.total_steps / wall,
+    steps = trainer.num_updates * config.steps_per_update  # total_steps rounded down to whole updates
+    return {"seed": seed, "wall_s": wall, "steps_per_s": steps / wall,
             "mean_return": float(final.mean()), "min_return": float(final.min()),
             "untrained_return": float(before.mean()), "train_episode_returns": returns_log}
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = OneLineArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("config", type=Path, help="PPOConfig JSON (PPOConfig.to_dict() output)")
     parser.add_argument("--seed", type=int, nargs="+", default=[0])
-    parser.add_argument("--episodes", type=int, default=32)
+    parser.add_argument("--episodes", type=positive_int, default=32)
     parser.add_argument("--out", type=Path, default=None, help="write the results as JSON here")
     args = parser.parse_args()
-    config = PPOConfig.from_dict(json.loads(args.config.read_text()))
+    try:
+        config = PPOConfig.from_dict(json.loads(args.config.read_text()))
+    except (OSError, ValueError) as err:  # unreadable file, bad JSON (a ValueError) or a bad config
+        parser.error(f"config {args.config}: {err}")
     rows = [run(config, seed, args.episodes) for seed in args.seed]
     print(f"{'seed':>5} {'wall s':>8} {'steps/s':>9} {'return':>9} {'min':>9} {'untrained':>10}")
     for r in rows:
