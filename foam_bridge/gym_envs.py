@@ -13,10 +13,12 @@ gymnasium's SAME_STEP mode: ``infos["final_obs"]`` / ``infos["final_info"]`` hol
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import os
 import shutil
 import tempfile
+from collections.abc import Iterator
 from typing import Any
 
 import gymnasium
@@ -50,15 +52,22 @@ def box(spec: BoxSpec) -> Box:
     return Box(low=low, high=high, shape=spec.shape, dtype=np.float32)
 
 
-def _private_dir(cfg: FoamEnvConfig) -> str:
+@contextlib.contextmanager
+def _private_dir(cfg: FoamEnvConfig) -> Iterator[str]:
     """A fresh directory under ``cfg.work_dir`` (or the temp dir) for one gym env instance.
 
     gymnasium makes several instances from the same kwargs (check_env, make_vec): a directory of
-    their own keeps one instance's close() from deleting another's cases.
+    their own keeps one instance's close() from deleting another's cases. It is removed again if the
+    ``with`` body raises (the env could not be built); otherwise the env's close() removes it.
     """
     if cfg.work_dir is not None:
         os.makedirs(cfg.work_dir, exist_ok=True)
-    return tempfile.mkdtemp(prefix="foam_bridge_", dir=cfg.work_dir)
+    path = tempfile.mkdtemp(prefix="foam_bridge_", dir=cfg.work_dir)
+    try:
+        yield path
+    except BaseException:
+        _remove_private_dir(cfg, path)
+        raise
 
 
 def _remove_private_dir(cfg: FoamEnvConfig, path: str | None) -> None:
@@ -86,8 +95,9 @@ class RelaxationControlEnv(gymnasium.Env):
 
         _no_render(render_mode)
         self.cfg = config_from_kwargs(config)
-        self._dir: str | None = _private_dir(self.cfg)
-        self.case_env = FoamCaseEnv(self.cfg, work_dir=self._dir, env_id=0)
+        self._dir: str | None
+        with _private_dir(self.cfg) as self._dir:
+            self.case_env = FoamCaseEnv(self.cfg, work_dir=self._dir, env_id=0)
         self.observation_space = box(self.case_env.observation_space_spec)
         self.action_space = box(self.case_env.action_space_spec)
 
@@ -125,9 +135,10 @@ class RelaxationControlVecEnv(VectorEnv):
     ) -> None:
         _no_render(render_mode)
         self.cfg = config_from_kwargs(config)
-        self._dir: str | None = _private_dir(self.cfg)
-        self.batch = BatchedFoamEnv(self.cfg, num_envs, backend=backend, pool=pool, ray_address=ray_address,
-                                    work_dir=self._dir, seed=seed)
+        self._dir: str | None
+        with _private_dir(self.cfg) as self._dir:
+            self.batch = BatchedFoamEnv(self.cfg, num_envs, backend=backend, pool=pool,
+                                        ray_address=ray_address, work_dir=self._dir, seed=seed)
         self.num_envs = num_envs
         self.single_observation_space = box(self.batch.observation_spec)
         self.single_action_space = box(self.batch.action_spec)

@@ -15,6 +15,7 @@ from gymnasium.utils.env_checker import check_env
 from gymnasium.vector import AutoresetMode
 
 import foam_bridge
+from foam_bridge.errors import OpenFOAMNotFoundError
 
 HAVE_OPENFOAM = shutil.which("simpleFoam") is not None
 COARSE = {"mesh_scale": 0.4, "simple_variant": "SIMPLEC", "relax_k_omega": 0.8, "max_iterations": 200,
@@ -39,6 +40,14 @@ def test_unknown_kwarg_is_a_value_error_naming_it(maker):
         maker(foam_bridge.ENV_ID, mesh_scal=0.5)
     with pytest.raises(ValueError, match="mesh_scale"):
         maker(foam_bridge.ENV_ID, mesh_scale=-1.0)
+
+
+def test_failed_construction_leaves_no_directory(tmp_path):
+    with pytest.raises(ValueError, match="pool"):
+        gym.make_vec(foam_bridge.ENV_ID, num_envs=2, pool=5, work_dir=str(tmp_path))
+    with pytest.raises(OpenFOAMNotFoundError):
+        gym.make(foam_bridge.ENV_ID, work_dir=str(tmp_path), openfoam_path=str(tmp_path / "no_openfoam"))
+    assert list(tmp_path.iterdir()) == []
 
 
 @needs_openfoam
