@@ -60,6 +60,8 @@ BAD_INPUTS = {
     "unknown config key": (["train-lorenz", "--config", "{tmp}/unknown.json"], "learning_rate"),
     "config value of wrong type": (["train-lorenz", "--config", "{tmp}/wrongtype.json"], "num_envs"),
     "out is a non-empty dir": (["train-lorenz", "--out", "{tmp}/busy"], "--resume"),
+    "out cannot be created": (["train-lorenz", "--out", "{tmp}/list.json/run"], "cannot create"),
+    "resume a file": (["train-lorenz", "--resume", "{tmp}/list.json"], "not a directory"),
     "resume missing dir": (["train-lorenz", "--resume", "{tmp}/missing"], "does not exist"),
     "resume dir without checkpoint": (["train-lorenz", "--resume", "{tmp}/stopped"], "no checkpoint"),
     "resume with a config flag": (["train-lorenz", "--resume", "{tmp}/stopped", "--lr", "1e-3"], "--lr"),

@@ -122,7 +122,10 @@ def run_train(args: argparse.Namespace, on_chunk: Any = None) -> int:
     from jaxsimrl.runs.training import Session, train
 
     trainer = lorenz_trainer(plan.config)
-    run = RunDir(plan.run_path) if plan.resume else RunDir.create(plan.run_path)
+    try:
+        run = RunDir(plan.run_path) if plan.resume else RunDir.create(plan.run_path)
+    except ValueError as err:
+        raise UsageError(str(err)) from None
     try:
         with Checkpoints(run.checkpoints) as checkpoints:
             state, done, log = _starting_point(plan, trainer, run, checkpoints)
@@ -219,6 +222,7 @@ def _print_summary(summary: dict[str, Any], run: Any) -> None:
 
 def _fresh_plan(args: argparse.Namespace) -> TrainPlan:
     from jaxsimrl.agents.ppo.config import PPOConfig
+    from jaxsimrl.runs.run_dir import RunDir
 
     values = _read_config_file(args.config) if args.config else {}
     values.update(_flag_overrides(args))
@@ -227,9 +231,10 @@ def _fresh_plan(args: argparse.Namespace) -> TrainPlan:
     except (TypeError, ValueError) as err:
         raise UsageError(f"invalid config: {err}") from None
     out = Path(args.out) if args.out else Path("runs") / time.strftime("lorenz-%Y%m%d-%H%M%S", time.gmtime())
-    if out.exists() and (not out.is_dir() or any(out.iterdir())):
-        raise UsageError(f"--out {out} exists and is not an empty directory (to continue a run there use "
-                         f"--resume {out})")
+    try:
+        RunDir.check_new(out)  # before any compiling; RunDir.create checks again
+    except ValueError as err:
+        raise UsageError(str(err)) from None
     return TrainPlan(config, 0 if args.seed is None else args.seed, out, resume=False, record={})
 
 

@@ -63,23 +63,35 @@ class RunDir:
     def checkpoints(self) -> Path:
         return self.path / CHECKPOINT_DIR
 
+    @staticmethod
+    def check_new(path: str | Path) -> None:
+        """Refuse a path for a fresh run that is a file or a non-empty directory (it may hold another
+        run); creates nothing."""
+        path = Path(path)
+        if path.exists() and not path.is_dir():
+            raise ValueError(f"--out {path} exists and is not a directory")
+        if path.is_dir() and any(path.iterdir()):
+            raise ValueError(f"--out {path} is not empty (continue that run with --resume {path})")
+
     @classmethod
     def create(cls, path: str | Path) -> RunDir:
-        """Make a fresh run directory; refuse an existing non-empty one (it may hold another run)."""
+        """Make a fresh run directory (see :meth:`check_new`)."""
         run = cls(Path(path))
-        if run.path.exists() and not run.path.is_dir():
-            raise ValueError(f"--out {run.path} exists and is not a directory")
-        if run.path.is_dir() and any(run.path.iterdir()):
-            raise ValueError(f"--out {run.path} is not empty (continue that run with --resume {run.path})")
-        run.path.mkdir(parents=True, exist_ok=True)
+        cls.check_new(run.path)
+        try:
+            run.path.mkdir(parents=True, exist_ok=True)
+        except OSError as err:
+            raise ValueError(f"cannot create --out {run.path}: {err.strerror}") from None
         return run
 
     @classmethod
     def existing(cls, path: str | Path) -> RunDir:
         """An existing run directory with a readable config.json."""
         run = cls(Path(path))
-        if not run.path.is_dir():
+        if not run.path.exists():
             raise ValueError(f"run directory {run.path} does not exist")
+        if not run.path.is_dir():
+            raise ValueError(f"run directory {run.path} is not a directory")
         if not run.config.is_file():
             raise ValueError(f"{run.path} is not a run directory (no {CONFIG_FILE})")
         return run
