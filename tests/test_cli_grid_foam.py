@@ -7,10 +7,10 @@ driven directly with the same constant factors.
 from __future__ import annotations
 
 import csv
-import shutil
 
 import numpy as np
 import pytest
+from foam_marks import needs_openfoam
 
 from foam_bridge.config import MESH_SCALE_USABLE_MIN, FoamEnvConfig
 from foam_bridge.grid import (
@@ -25,14 +25,6 @@ from foam_bridge.grid import (
     write_grid_csv,
 )
 from jaxsimrl.cli.main import main
-
-HAVE_OPENFOAM = shutil.which("simpleFoam") is not None
-
-
-def needs_openfoam(test):
-    """Mark a test that runs the real simpleFoam (skipped where it is not installed)."""
-    return pytest.mark.openfoam(pytest.mark.skipif(not HAVE_OPENFOAM, reason="simpleFoam not on PATH")(test))
-
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 

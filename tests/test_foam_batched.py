@@ -8,13 +8,13 @@ from __future__ import annotations
 
 import dataclasses
 import os
-import shutil
 import signal
 import subprocess
 import time
 
 import numpy as np
 import pytest
+from foam_marks import HAVE_OPENFOAM, needs_openfoam
 
 from foam_bridge.backends import WORKER_DIED, env_dir, validate_pool
 from foam_bridge.backends.reaper import kill_processes_under, processes_under
@@ -22,16 +22,10 @@ from foam_bridge.batched import BatchedFoamEnv, failure_reward
 from foam_bridge.config import FoamEnvConfig
 from foam_bridge.errors import OpenFOAMNotFoundError
 
-HAVE_OPENFOAM = shutil.which("simpleFoam") is not None
 # Smallest usable mesh, 300-iteration cap: an episode is at most 3 steps of 100 iterations.
 COARSE = FoamEnvConfig(mesh_scale=0.4, simple_variant="SIMPLEC", relax_k_omega=0.8, max_iterations=300,
                        step_timeout_s=60.0)
 SAFE_ACTION = (0.9, 0.5)  # stable on this mesh: converges in ~270-280 iterations at 35-65 m/s
-
-
-def needs_openfoam(test):
-    """Mark a test that runs the real simpleFoam (skipped where it is not installed)."""
-    return pytest.mark.openfoam(pytest.mark.skipif(not HAVE_OPENFOAM, reason="simpleFoam not on PATH")(test))
 
 
 # ----- no solver needed --------------------------------------------------------------------------

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from foam_marks import OPENFOAM
 from foamlib import FoamFile
 
 from foam_bridge import case as foam_case
@@ -24,8 +25,7 @@ from foam_bridge.errors import CaseError
 from foam_bridge.logparse import LogParser
 from foam_bridge.solver import run_to_end
 
-needs_openfoam = pytest.mark.skipif(shutil.which("simpleFoam") is None, reason="simpleFoam not on PATH")
-pytestmark = [pytest.mark.openfoam, needs_openfoam]
+pytestmark = OPENFOAM
 
 BEST = (0.95, 0.95)
 

@@ -4,27 +4,21 @@ iteration cap."""
 
 from __future__ import annotations
 
-import shutil
 import subprocess
 import sys
 
 import gymnasium as gym
 import numpy as np
 import pytest
+from foam_marks import needs_openfoam
 from gymnasium.utils.env_checker import check_env
 from gymnasium.vector import AutoresetMode
 
 import foam_bridge
 from foam_bridge.errors import OpenFOAMNotFoundError
 
-HAVE_OPENFOAM = shutil.which("simpleFoam") is not None
 COARSE = {"mesh_scale": 0.4, "simple_variant": "SIMPLEC", "relax_k_omega": 0.8, "max_iterations": 200,
           "step_timeout_s": 60.0}
-
-
-def needs_openfoam(test):
-    """Mark a test that runs the real simpleFoam (skipped where it is not installed)."""
-    return pytest.mark.openfoam(pytest.mark.skipif(not HAVE_OPENFOAM, reason="simpleFoam not on PATH")(test))
 
 
 def test_import_registers_the_id_without_jax():

@@ -3,15 +3,13 @@ as the local process pool. Real simpleFoam, the smallest usable mesh (0.4)."""
 
 from __future__ import annotations
 
-import shutil
-
 import numpy as np
 import pytest
+from foam_marks import needs_openfoam
 
 from foam_bridge.batched import BatchedFoamEnv
 from foam_bridge.config import FoamEnvConfig
 
-HAVE_OPENFOAM = shutil.which("simpleFoam") is not None
 COARSE = FoamEnvConfig(mesh_scale=0.4, simple_variant="SIMPLEC", relax_k_omega=0.8, max_iterations=200,
                        step_timeout_s=60.0)
 # Different factors per env and per step, so a mix-up of envs or steps would change the residuals; all
@@ -36,8 +34,7 @@ def rollout(backend: str, work_dir) -> dict[str, list]:
     return seen
 
 
-@pytest.mark.openfoam
-@pytest.mark.skipif(not HAVE_OPENFOAM, reason="simpleFoam not on PATH")
+@needs_openfoam
 def test_ray_backend_matches_the_local_pool(tmp_path):
     ray = pytest.importorskip("ray")
     local = rollout("local", tmp_path / "local")
