@@ -64,6 +64,7 @@ BAD_INPUTS = {
     "resume a file": (["train-lorenz", "--resume", "{tmp}/list.json"], "not a directory"),
     "resume missing dir": (["train-lorenz", "--resume", "{tmp}/missing"], "does not exist"),
     "resume dir without checkpoint": (["train-lorenz", "--resume", "{tmp}/stopped"], "no checkpoint"),
+    "resume with a non-integer seed": (["train-lorenz", "--resume", "{tmp}/badseed"], "seed must be an int"),
     "resume with a config flag": (["train-lorenz", "--resume", "{tmp}/stopped", "--lr", "1e-3"], "--lr"),
     "resume with a network flag": (["train-lorenz", "--resume", "{tmp}/stopped", "--network", "mlp"],
                                    "--network"),
@@ -83,6 +84,8 @@ def test_bad_input_is_one_line_on_stderr_and_exit_2(case, tmp_path, capsys):
     (tmp_path / "busy").mkdir()
     (tmp_path / "busy" / "metrics.jsonl").write_text("{}\n")
     run_dir_without_checkpoint(tmp_path)
+    (tmp_path / "badseed").mkdir()
+    write_json(tmp_path / "badseed" / "config.json", {"seed": "0", "ppo": PPOConfig().to_dict()})
     argv, needle = BAD_INPUTS[case]
     code, out, err = run_cli([arg.format(tmp=tmp_path) for arg in argv], capsys)
     assert code == 2

@@ -261,7 +261,7 @@ def _resume_plan(args: argparse.Namespace) -> TrainPlan:
             raise UsageError(f"--total-steps {args.total_steps} is below the run's {config.total_steps}: "
                              f"it may only be raised when resuming")
         config = PPOConfig.from_dict({**config.to_dict(), "total_steps": args.total_steps})
-    return TrainPlan(config, int(record.get("seed", 0)), run.path, resume=True, record=record)
+    return TrainPlan(config, record.get("seed", 0), run.path, resume=True, record=record)
 
 
 def _read_config_file(path: str) -> dict[str, Any]:

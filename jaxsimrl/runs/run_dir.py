@@ -106,6 +106,8 @@ class RunDir:
             raise ValueError(f"cannot read {self.config}: {err}") from None
         if not isinstance(record, dict) or not isinstance(record.get("ppo"), dict):
             raise ValueError(f"{self.config} has no 'ppo' section: not a jaxsimrl run config")
+        if not isinstance(record.get("seed", 0), int):
+            raise ValueError(f"{self.config}: seed must be an integer, got {record['seed']!r}")
         return record
 
     def write_summary(self, summary: dict[str, Any]) -> None:
