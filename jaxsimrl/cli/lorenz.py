@@ -193,8 +193,7 @@ def _config_record(plan: TrainPlan) -> dict[str, Any]:
 
 def _interrupted(run: Any) -> int:
     """Ctrl-C: everything on disk is whole (writes are atomic and Ctrl-C waits for a chunk's writes)."""
-    # Orbax names a checkpoint by its step only once it is complete.
-    steps = sorted(int(p.name) for p in run.checkpoints.glob("*") if p.name.isdigit())
+    steps = run.checkpoint_steps()
     if steps:
         sys.stderr.write(f"jaxsimrl train-lorenz: interrupted; saved up to update {steps[-1]}. Resume with: "
                          f"jaxsimrl train-lorenz --resume {run.path}\n")
@@ -254,7 +253,7 @@ def _resume_plan(args: argparse.Namespace) -> TrainPlan:
         config = PPOConfig.from_dict(record["ppo"])
     except (TypeError, ValueError) as err:
         raise UsageError(f"cannot resume: {err}") from None
-    if not (run.checkpoints.is_dir() and any(p.name.isdigit() for p in run.checkpoints.iterdir())):
+    if not run.checkpoint_steps():
         raise UsageError(f"cannot resume: no checkpoint in {run.path} (it stopped before its first chunk)")
     if args.total_steps is not None:
         if args.total_steps < config.total_steps:

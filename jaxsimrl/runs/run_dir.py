@@ -110,6 +110,13 @@ class RunDir:
             raise ValueError(f"{self.config}: seed must be an integer, got {record['seed']!r}")
         return record
 
+    def checkpoint_steps(self) -> list[int]:
+        """Steps of the checkpoints on disk, oldest first, read without orbax: orbax names a
+        checkpoint directory by its step only once the checkpoint is complete."""
+        if not self.checkpoints.is_dir():
+            return []
+        return sorted(int(p.name) for p in self.checkpoints.iterdir() if p.name.isdigit() and p.is_dir())
+
     def write_summary(self, summary: dict[str, Any]) -> None:
         atomic_write_json(self.summary, _json_safe(summary))
 
