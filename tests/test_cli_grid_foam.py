@@ -1,7 +1,7 @@
 """``jaxsimrl grid-foam`` and foam_bridge.grid: CLI errors, CSV/heatmap output, and a real 2x2 grid.
 
-The end-to-end test runs real simpleFoam on the coarse mesh and checks one cell against FoamCaseEnv
-driven directly with the same constant factors.
+The end-to-end test runs real simpleFoam on the smallest usable mesh (0.4) and checks one cell against
+FoamCaseEnv driven directly with the same constant factors.
 """
 
 from __future__ import annotations
@@ -130,8 +130,9 @@ def test_grid_end_to_end_matches_the_env(capsys, tmp_path):
     from foam_bridge.env import FoamCaseEnv
 
     out = tmp_path / "out"
-    # Mesh 0.5: the coarsest on which some cells converge (alpha_u 0.95) within the cap; 0.7 does not.
-    argv = ("--alpha-u", "0.7", "0.95", "--alpha-p", "0.5", "0.95", "--mesh-scale", "0.5", "--pool", "2",
+    # Mesh 0.4 (the usable minimum): the alpha_u 0.95 cells converge within the cap (237 and 181
+    # iterations), the 0.7 ones do not.
+    argv = ("--alpha-u", "0.7", "0.95", "--alpha-p", "0.5", "0.95", "--mesh-scale", "0.4", "--pool", "2",
             "--max-iterations", "300", "--simple-variant", "SIMPLEC", "--out", str(out))
     code, err, stdout = run_cli(capsys, *argv)
     assert code == 0, err
@@ -148,7 +149,7 @@ def test_grid_end_to_end_matches_the_env(capsys, tmp_path):
 
     # The best cell again, with FoamCaseEnv driven directly: same iterations and outcome.
     cell = best
-    base = FoamEnvConfig(mesh_scale=0.5, simple_variant="SIMPLEC", inlet_velocity=44.2, max_iterations=300)
+    base = FoamEnvConfig(mesh_scale=0.4, simple_variant="SIMPLEC", inlet_velocity=44.2, max_iterations=300)
     cfg = grid_config(base, [0.7, 0.95], [0.5, 0.95])
     env = FoamCaseEnv(cfg, work_dir=tmp_path / "direct", env_id=0)
     try:
