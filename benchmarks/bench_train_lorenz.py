@@ -17,7 +17,7 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from jaxsimrl.agents.ppo import PPOConfig, episode_returns, make_policy, make_train
+from jaxsimrl.agents.ppo import PPOConfig, episode_returns, make_train
 from jaxsimrl.cli.errors import OneLineArgumentParser, positive_int
 from jaxsimrl.envs.lorenz import Lorenz
 from jaxsimrl.runs.atomic import atomic_write_json
@@ -39,10 +39,9 @@ def run(config: PPOConfig, seed: int, episodes: int) -> dict:
         returns_log.extend(np.asarray(metrics["mean_episode_return"]).tolist())
     jax.block_until_ready(state.params)
     wall = time.perf_counter() - start
-    policy = make_policy(config, env, params)
     eval_key = jax.random.PRNGKey(EVAL_KEY)
-    final = episode_returns(policy, state, env, params, eval_key, episodes)
-    before = episode_returns(policy, initial, env, params, eval_key, episodes)
+    final = episode_returns(trainer.policy, state, env, params, eval_key, episodes)
+    before = episode_returns(trainer.policy, initial, env, params, eval_key, episodes)
     steps = trainer.num_updates * config.steps_per_update  # total_steps rounded down to whole updates
     return {"seed": seed, "wall_s": wall, "steps_per_s": steps / wall,
             "mean_return": float(final.mean()), "min_return": float(final.min()),

@@ -13,6 +13,8 @@ from __future__ import annotations
 from typing import Any
 
 import jax
+import jax.numpy as jnp
+import numpy as np
 from flax import struct
 
 from jaxsimrl.agents.ppo import distribution
@@ -37,8 +39,8 @@ class Policy:
         self.config = config
         params = env.default_params() if env_params is None else env_params
         box = env.action_space(params)
-        self.low, self.high = box.low, box.high
-        self.network = make_network(config, int(box.shape[0]))
+        self.low, self.high = jnp.broadcast_to(box.low, box.shape), jnp.broadcast_to(box.high, box.shape)
+        self.network = make_network(config, int(np.prod(box.shape)))
 
     def initial_carry(self, batch_size: int) -> Carry:
         return initial_carry(self.config, batch_size)

@@ -23,7 +23,8 @@ from jax.sharding import PartitionSpec as P
 from jaxsimrl.agents.ppo import normalizer as norm
 from jaxsimrl.agents.ppo.config import PPOConfig
 from jaxsimrl.agents.ppo.learner import learn, make_optimizer
-from jaxsimrl.agents.ppo.networks import initial_carry, make_network
+from jaxsimrl.agents.ppo.networks import initial_carry
+from jaxsimrl.agents.ppo.policy import Policy
 from jaxsimrl.agents.ppo.rollout import RolloutContext, RunnerState, collect, critic_value
 
 AXIS = "envs"
@@ -39,7 +40,7 @@ def _state_specs() -> RunnerState:
 
 
 class PPOTrainer:
-    """PPO on a pure-JAX env; build it with :func:`make_train`."""
+    """PPO on a pure-JAX env; build it with :func:`make_train`. ``policy`` acts with its states."""
 
     def __init__(self, config: PPOConfig, env: Any, env_params: Any = None,
                  devices: Sequence[jax.Device] | None = None) -> None:
@@ -53,13 +54,11 @@ class PPOTrainer:
         self.mesh = Mesh(np.array(self.devices), (AXIS,))
         self.num_updates = config.num_updates
         self.num_chunks = math.ceil(self.num_updates / config.updates_per_chunk)
-        box = env.action_space(self.env_params)
-        self.action_dim = int(np.prod(box.shape))
-        self.network = make_network(config, self.action_dim)
+        self.policy = Policy(config, env, self.env_params)  # acts with the network and box trained here
+        self.network = self.policy.network
         self.tx, self.schedule = make_optimizer(config, self.num_updates)
-        self.ctx = RolloutContext(self.network.apply, env, self.env_params, config,
-                                  jnp.broadcast_to(box.low, box.shape), jnp.broadcast_to(box.high, box.shape),
-                                  config.num_envs // len(self.devices), AXIS)
+        self.ctx = RolloutContext(self.network.apply, env, self.env_params, config, self.policy.low,
+                                  self.policy.high, config.num_envs // len(self.devices), AXIS)
         self._specs = _state_specs()
         shardings = jax.tree.map(lambda spec: NamedSharding(self.mesh, spec), self._specs,
                                  is_leaf=lambda x: isinstance(x, P))
