@@ -57,7 +57,13 @@ class LorenzParams:
 
     @property
     def base(self) -> jax.Array:
+        """The unperturbed (sigma, rho, beta)."""
         return jnp.stack([jnp.asarray(self.sigma), jnp.asarray(self.rho), jnp.asarray(self.beta)])
+
+    @property
+    def action_bound(self) -> jax.Array:
+        """Half-width of the action box: +-``action_fraction`` x |base|."""
+        return self.action_fraction * jnp.abs(self.base)
 
 
 @struct.dataclass
@@ -102,7 +108,7 @@ class Lorenz:
 
     def step(self, key: jax.Array, state: LorenzState, action: jax.Array, params: LorenzParams) -> Step:
         del key  # the dynamics are deterministic
-        bound = params.action_fraction * jnp.abs(params.base)
+        bound = params.action_bound
         coeffs = params.base + jnp.clip(action, -bound, bound)
         xyz = rk4_step(state.xyz, coeffs, params.dt)
         velocity = lorenz_rhs(xyz, coeffs)
@@ -127,7 +133,7 @@ class Lorenz:
         return BoxSpec(low=-jnp.inf, high=jnp.inf, shape=(self.obs_dim,))
 
     def action_space(self, params: LorenzParams) -> BoxSpec:
-        bound = params.action_fraction * jnp.abs(params.base)
+        bound = params.action_bound
         return BoxSpec(low=-bound, high=bound, shape=(self.action_dim,))
 
     @staticmethod
