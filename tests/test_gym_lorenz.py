@@ -161,6 +161,8 @@ def test_constructor_kwargs_map_onto_params():
     ({"init_state": ["a", "b", "c"]}, "init_state"),
     ({"max_steps": float("nan")}, "max_steps"),
     ({"episode_steps": 0}, "episode_steps"),
+    ({"max_steps": 2**40}, "max_steps"),  # beyond the int32 step counter
+    ({"action_fraction": -0.1}, "action_fraction"),
     ({"dt": "fast"}, "dt"),
     ({"random_init": "yes"}, "random_init"),
     ({"init_low": 5.0, "init_high": -5.0}, "init_low"),

@@ -30,6 +30,7 @@ from jaxsimrl.envs.lorenz import Lorenz, LorenzParams, LorenzState
 
 _ARRAY_FIELDS = {"init_state": (3,), "obs_scale": (6,)}
 _INT_FIELDS = ("terminal_window", "episode_steps", "max_steps")
+_INT32_MAX = 2**31 - 1
 _PARAM_FIELDS = tuple(f.name for f in dataclasses.fields(LorenzParams))
 _OBS, _XYZ, _SCALARS = slice(0, 6), slice(6, 9), slice(9, 14)  # layout of _step_and_split's vector
 _LORENZ = Lorenz()  # stateless: one instance lets every wrapper share the jit caches
@@ -51,6 +52,8 @@ def make_params(**overrides: Any) -> LorenzParams:
     if not params.init_low < params.init_high:
         raise ValueError(f"Lorenz parameters need init_low < init_high, got {params.init_low} and "
                          f"{params.init_high}")
+    if params.action_fraction < 0:
+        raise ValueError(f"Lorenz parameter action_fraction must be >= 0, got {params.action_fraction}")
     return params
 
 
@@ -66,9 +69,9 @@ def _convert(name: str, value: Any) -> Any:
         raise ValueError(f"Lorenz parameter {name} must be a number, got {value!r}")
     if not np.isfinite(value):
         raise ValueError(f"Lorenz parameter {name} must be finite, got {value!r}")
-    if name in _INT_FIELDS:
-        if int(value) != value or value < 1:
-            raise ValueError(f"Lorenz parameter {name} must be a positive integer, got {value!r}")
+    if name in _INT_FIELDS:  # step counts are compared with the int32 LorenzState.t
+        if int(value) != value or not 1 <= value <= _INT32_MAX:
+            raise ValueError(f"Lorenz parameter {name} must be an integer in [1, 2**31 - 1], got {value!r}")
         return int(value)
     return float(value)
 
