@@ -162,12 +162,17 @@ class MetricsLog:
         return int(self.rows[-1]["env_steps"]) if self.rows else 0
 
 
+def rows_with_episodes(rows: Sequence[Row]) -> list[Row]:
+    """The rows of the updates in which at least one episode ended (a finite mean_episode_return)."""
+    return [r for r in rows if r.get("episodes", 0) > 0 and math.isfinite(r["mean_episode_return"])]
+
+
 def summarise(rows: Sequence[Row], extra: dict[str, Any] | None = None) -> dict[str, Any]:
     """summary.json: totals plus ``final_mean_return``, the episode-weighted mean return over the last
     ``FINAL_RETURN_UPDATES`` updates in which at least one episode ended (NaN if none did)."""
     total_steps = int(rows[-1]["env_steps"]) if rows else 0
     wall = float(rows[-1]["wall_time_s"]) if rows else 0.0
-    with_episodes = [r for r in rows if r.get("episodes", 0) > 0 and math.isfinite(r["mean_episode_return"])]
+    with_episodes = rows_with_episodes(rows)
     window = with_episodes[-FINAL_RETURN_UPDATES:]
     episodes = sum(int(r["episodes"]) for r in window)
     final = sum(r["mean_episode_return"] * r["episodes"] for r in window) / episodes if episodes else math.nan

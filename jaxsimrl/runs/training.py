@@ -23,7 +23,7 @@ import numpy as np
 
 from jaxsimrl.runs.checkpoint import Checkpoints
 from jaxsimrl.runs.progress import TrainingProgress
-from jaxsimrl.runs.run_dir import MetricsLog, Row, RunDir, summarise
+from jaxsimrl.runs.run_dir import MetricsLog, Row, RunDir, rows_with_episodes, summarise
 
 ChunkHook = Callable[[int], None]
 
@@ -65,10 +65,8 @@ def _scalar(value: np.ndarray) -> int | float:
 
 def latest_return(rows: list[Row]) -> float:
     """The mean episode return of the newest update in which an episode ended (NaN if none)."""
-    for row in reversed(rows):
-        if row.get("episodes", 0) > 0 and math.isfinite(row["mean_episode_return"]):
-            return float(row["mean_episode_return"])
-    return math.nan
+    ended = rows_with_episodes(rows)
+    return float(ended[-1]["mean_episode_return"]) if ended else math.nan
 
 
 @dataclass
