@@ -278,12 +278,10 @@ def _read_config_file(path: str) -> dict[str, Any]:
 
 
 def _flag_overrides(args: argparse.Namespace) -> dict[str, Any]:
+    """The PPOConfig fields given as flags (PPOConfig.from_dict validates their values)."""
     overrides = {name: getattr(args, name) for name, _, _ in KNOBS if getattr(args, name) is not None}
-    if getattr(args, "network", None) is not None:
+    if args.network is not None:
         overrides["network"] = args.network
-    for name in ("gamma", "gae_lambda", "ent_coef"):
-        if name in overrides and not math.isfinite(overrides[name]):
-            raise UsageError(f"--{name.replace('_', '-')} must be a finite number, got {overrides[name]}")
     return overrides
 
 
