@@ -81,9 +81,10 @@ class Session:
     summary_extra: dict[str, Any] = field(default_factory=dict)  # copied into summary.json
 
     def write_summary(self) -> dict[str, Any]:
-        done = int(self.log.rows[-1]["update"]) if self.log.rows else 0
-        summary = summarise(self.log.rows, {**self.summary_extra, "num_updates": self.trainer.num_updates,
-                                            "complete": done >= self.trainer.num_updates})
+        """Write summary.json from the metrics rows so far and return it."""
+        num_updates = self.trainer.num_updates
+        summary = summarise(self.log.rows, {**self.summary_extra, "num_updates": num_updates})
+        summary["complete"] = summary["updates"] >= num_updates
         self.run.write_summary(summary)
         return summary
 
