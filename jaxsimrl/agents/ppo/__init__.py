@@ -3,7 +3,7 @@
 config.py (PPOConfig) | networks.py (actor-critic, LSTM with episode resets) | distribution.py (Gaussian
 squashed into the action box) | normalizer.py (running obs statistics) | rollout.py (experience, RunnerState)
 | losses.py (GAE, PPO loss) | learner.py (epochs x minibatches) | train.py (make_train, devices) |
-policy.py (make_policy) | evaluate.py (mean return over random initial states).
+policy.py (make_policy) | evaluate.py (scan_episodes, episode_returns over random initial states).
 """
 
 from jaxsimrl.agents.ppo.config import PPOConfig

@@ -1,7 +1,8 @@
-"""Mean return of a policy over full episodes from random initial states (jitted, vmapped)."""
+"""Policy rollouts over batches of full episodes (jitted, vmapped) and their returns."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import jax
@@ -9,6 +10,29 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxsimrl.agents.ppo.policy import Policy
+
+# act(obs (B, obs_dim), carry, starts (B,), key) -> (actions (B, action_dim), carry)
+ActFn = Callable[[jax.Array, Any, jax.Array, jax.Array], tuple[jax.Array, Any]]
+
+
+def scan_episodes(env: Any, env_params: Any, act: ActFn, carry: Any, start: tuple[jax.Array, Any],
+                  key: jax.Array, steps: int, record: Callable[[Any], Any]) -> Any:
+    """Run the batch of episodes ``start`` = (obs, env state) for ``steps`` steps under ``act``.
+
+    Step t acts with ``fold_in(key, t)`` and steps every env with ``key``; the first step is flagged
+    as an episode start. Returns ``record(step)`` of every env step, stacked time-major (steps, B, ...).
+    Trace it inside ``jit``.
+    """
+    obs, state = start
+    first = jnp.ones(obs.shape[0], bool)
+
+    def step(loop: tuple, t: jax.Array) -> tuple[tuple, Any]:
+        obs, state, carry = loop
+        action, carry = act(obs, carry, first & (t == 0), jax.random.fold_in(key, t))
+        out = jax.vmap(env.step, in_axes=(None, 0, 0, None))(key, state, action, env_params)
+        return (out.obs, out.state, carry), record(out)
+
+    return jax.lax.scan(step, (obs, state, carry), jnp.arange(steps))[1]
 
 
 def episode_returns(policy: Policy, state_or_params: Any, env: Any, env_params: Any, key: jax.Array,
@@ -26,24 +50,15 @@ def episode_returns(policy: Policy, state_or_params: Any, env: Any, env_params: 
 def _returns(policy: Policy, state_or_params: Any, env: Any, env_params: Any, key: jax.Array,
              num_episodes: int, deterministic: bool, steps: int) -> jax.Array:
     reset_key, act_key = jax.random.split(key)
-    obs, env_state = jax.vmap(env.reset, in_axes=(0, None))(jax.random.split(reset_key, num_episodes),
-                                                            env_params)
-    carry = policy.initial_carry(num_episodes)
-    first = jnp.ones(num_episodes, bool)
+    start = jax.vmap(env.reset, in_axes=(0, None))(jax.random.split(reset_key, num_episodes), env_params)
 
-    def step(loop: tuple, t: jax.Array) -> tuple[tuple, None]:
-        obs, env_state, carry, alive, total = loop
-        starts = first & (t == 0)
-        action, carry = policy.act(state_or_params, obs, carry, starts, jax.random.fold_in(act_key, t),
-                                   deterministic)
-        out = jax.vmap(env.step, in_axes=(None, 0, 0, None))(act_key, env_state, action, env_params)
-        total = total + jnp.where(alive, out.reward, 0.0)
-        alive = alive & ~(out.terminated | out.truncated)
-        return (out.obs, out.state, carry, alive, total), None
+    def act(obs: jax.Array, carry: Any, starts: jax.Array, key: jax.Array) -> tuple[jax.Array, Any]:
+        return policy.act(state_or_params, obs, carry, starts, key, deterministic)
 
-    init = (obs, env_state, carry, first, jnp.zeros(num_episodes, jnp.float32))
-    (_, _, _, _, total), _ = jax.lax.scan(step, init, jnp.arange(steps))
-    return total
+    reward, done = scan_episodes(env, env_params, act, policy.initial_carry(num_episodes), start, act_key,
+                                 steps, lambda out: (out.reward, out.terminated | out.truncated))
+    ended_before = (jnp.cumsum(done, axis=0) - done) > 0  # an earlier step ended the episode
+    return jnp.sum(jnp.where(ended_before, 0.0, reward), axis=0)
 
 
 _returns = jax.jit(_returns, static_argnums=(0, 2, 5, 6, 7))
