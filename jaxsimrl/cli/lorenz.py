@@ -166,11 +166,11 @@ def _starting_point(plan: TrainPlan, trainer: Any, run: Any, checkpoints: Any) -
     if not plan.resume:
         return trainer.init(key), 0, MetricsLog(run)
     try:
+        done = checkpoints.latest_step()  # a checkpoint is named by the number of updates done
         # eval_shape gives the state's structure without computing it; orbax restores the saved shardings.
-        state, meta = checkpoints.restore(jax.eval_shape(trainer.init, key))
+        state, _ = checkpoints.restore(jax.eval_shape(trainer.init, key), done)
     except ValueError as err:
         raise UsageError(f"cannot resume: {err}") from None
-    done = int(meta["update"])
     log = MetricsLog.load(run, done)  # drops rows of a chunk whose checkpoint never landed
     log.write()
     return state, done, log
