@@ -132,15 +132,16 @@ def evaluate_run(run_path: Path, episodes: int = 32, stochastic: bool = False, s
     """eval-lorenz: write RUN_DIR/eval.json and RUN_DIR/eval_trajectory.png; return the report."""
     from jaxsimrl.evaluation.plots import plot_trajectories
 
-    policy, state, meta = load_trained(run_path)
+    policy, state, _ = load_trained(run_path)
 
     def act(obs: jax.Array, carry: Any, starts: jax.Array, key: jax.Array) -> tuple[jax.Array, Any]:
         return policy.act(state, obs, carry, starts, key, deterministic=not stochastic)
 
     env, params = Lorenz(), LorenzParams()
     report, agent, base = compare(env, params, act, policy.initial_carry(episodes + 1), episodes, seed)
-    report.update(stochastic=stochastic, checkpoint_update=int(meta["update"]),
-                  trained_env_steps=int(meta["env_steps"]))
+    update = int(state.update_step)  # the state's own count, whatever the checkpoint's record says
+    report.update(stochastic=stochastic, checkpoint_update=update,
+                  trained_env_steps=update * policy.config.steps_per_update)
     plot_trajectories(Path(run_path) / PLOT_FILE, agent.xyz[0], base.xyz[0], agent.speed[0], base.speed[0],
                       dt=float(params.dt), v_threshold=float(params.v_threshold), fixed_point=P_MINUS)
     atomic_write_json(Path(run_path) / EVAL_FILE, report)
