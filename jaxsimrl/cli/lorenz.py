@@ -264,14 +264,12 @@ def _resume_plan(args: argparse.Namespace) -> TrainPlan:
 
 
 def _read_config_file(path: str) -> dict[str, Any]:
+    from jaxsimrl.runs.run_dir import read_json
+
     try:
-        text = Path(path).read_text()
-    except OSError as err:
-        raise UsageError(f"cannot read --config {path}: {err.strerror}") from None
-    try:
-        values = json.loads(text)
-    except json.JSONDecodeError as err:
-        raise UsageError(f"--config {path} is not valid JSON: {err}") from None
+        values = read_json(path)
+    except ValueError as err:
+        raise UsageError(f"--config: {err}") from None
     if not isinstance(values, dict):
         raise UsageError(f"--config {path} must hold a JSON object of PPOConfig fields")
     return values

@@ -100,10 +100,7 @@ class RunDir:
         atomic_write_json(self.config, record)
 
     def read_config(self) -> dict[str, Any]:
-        try:
-            record = json.loads(self.config.read_text())
-        except (OSError, json.JSONDecodeError) as err:
-            raise ValueError(f"cannot read {self.config}: {err}") from None
+        record = read_json(self.config)
         if not isinstance(record, dict) or not isinstance(record.get("ppo"), dict):
             raise ValueError(f"{self.config} has no 'ppo' section: not a jaxsimrl run config")
         if not isinstance(record.get("seed", 0), int):
@@ -130,10 +127,11 @@ class MetricsLog:
 
     @classmethod
     def load(cls, run: RunDir, up_to_update: int) -> MetricsLog:
-        """Rows of updates 1..``up_to_update`` from metrics.jsonl (later rows and a torn line are dropped)."""
+        """Rows of updates 1..``up_to_update`` from metrics.jsonl (later rows and torn or garbled lines are
+        dropped)."""
         rows: list[Row] = []
         if run.metrics_jsonl.exists():
-            for line in run.metrics_jsonl.read_text().splitlines():
+            for line in run.metrics_jsonl.read_text(errors="replace").splitlines():
                 try:
                     row = json.loads(line)
                 except json.JSONDecodeError:
@@ -160,6 +158,18 @@ class MetricsLog:
     @property
     def env_steps(self) -> int:
         return int(self.rows[-1]["env_steps"]) if self.rows else 0
+
+
+def read_json(path: str | Path) -> Any:
+    """The JSON value in ``path``; a one-line ValueError if the file cannot be read or is not JSON."""
+    try:
+        data = Path(path).read_bytes()
+    except OSError as err:
+        raise ValueError(f"cannot read {path}: {err.strerror}") from None
+    try:
+        return json.loads(data)
+    except ValueError as err:  # JSONDecodeError, or UnicodeDecodeError for a binary file
+        raise ValueError(f"{path} is not valid JSON: {err}") from None
 
 
 def rows_with_episodes(rows: Sequence[Row]) -> list[Row]:
