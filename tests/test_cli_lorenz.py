@@ -56,6 +56,7 @@ BAD_INPUTS = {
     "seq_len not dividing": (["train-lorenz", "--seq-len", "7"], "seq_len"),
     "missing config": (["train-lorenz", "--config", "{tmp}/nope.json"], "nope.json"),
     "malformed config": (["train-lorenz", "--config", "{tmp}/bad.json"], "not valid JSON"),
+    "binary config": (["train-lorenz", "--config", "{tmp}/binary.json"], "not valid JSON"),
     "config not an object": (["train-lorenz", "--config", "{tmp}/list.json"], "JSON object"),
     "unknown config key": (["train-lorenz", "--config", "{tmp}/unknown.json"], "learning_rate"),
     "config value of wrong type": (["train-lorenz", "--config", "{tmp}/wrongtype.json"], "num_envs"),
@@ -79,6 +80,7 @@ BAD_INPUTS = {
 def test_bad_input_is_one_line_on_stderr_and_exit_2(case, tmp_path, capsys):
     write_json(tmp_path / "bad.json", "{num_envs: 2")
     write_json(tmp_path / "list.json", [1, 2])
+    (tmp_path / "binary.json").write_bytes(b"\x80\x81{")
     write_json(tmp_path / "unknown.json", {"learning_rate": 1e-3})
     write_json(tmp_path / "wrongtype.json", {"num_envs": "two"})
     (tmp_path / "busy").mkdir()
