@@ -12,11 +12,12 @@ import sys
 
 from jaxsimrl.cli.errors import OneLineArgumentParser, UsageError
 
-# Modules that contribute subcommands; a missing one is skipped so the halves stay independent.
+# Modules that contribute subcommands.
 SUBCOMMAND_MODULES = ("jaxsimrl.cli.lorenz", "jaxsimrl.cli.foam")
 
 
 def build_parser() -> OneLineArgumentParser:
+    """The ``jaxsimrl`` parser with every subcommand."""
     parser = OneLineArgumentParser(
         prog="jaxsimrl",
         description="Train deep-RL agents (pure-JAX PPO) to control scientific simulations.",
@@ -24,17 +25,12 @@ def build_parser() -> OneLineArgumentParser:
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=OneLineArgumentParser)
     subparsers.required = True
     for name in SUBCOMMAND_MODULES:
-        try:
-            module = importlib.import_module(name)
-        except ModuleNotFoundError as err:
-            if err.name != name:
-                raise
-            continue
-        module.register(subparsers)
+        importlib.import_module(name).register(subparsers)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run ``jaxsimrl argv``; returns the exit code (2 for bad input, 130 for Ctrl-C)."""
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
