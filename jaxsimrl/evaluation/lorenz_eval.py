@@ -11,7 +11,6 @@ Actions are the policy's mean (deterministic) unless ``stochastic``.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -19,13 +18,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxsimrl.agents.ppo.evaluate import ActFn, scan_episodes
 from jaxsimrl.envs.lorenz import P_MINUS, Lorenz, LorenzParams
 from jaxsimrl.runs.atomic import atomic_write_json
 
 EVAL_FILE = "eval.json"
 PLOT_FILE = "eval_trajectory.png"
-# act(obs (B, 6), carry, starts (B,), key) -> (actions (B, 3), carry)
-ActFn = Callable[[jax.Array, Any, jax.Array, jax.Array], tuple[jax.Array, Any]]
 
 
 class Rollout(NamedTuple):
@@ -55,18 +53,9 @@ def rollout(env: Lorenz, params: LorenzParams, act: ActFn, carry: Any, start: tu
     """Run every episode of ``start`` for ``params.horizon`` steps under ``act`` (jitted)."""
 
     def run(carry: Any, start: tuple[jax.Array, Any], key: jax.Array) -> tuple[jax.Array, ...]:
-        obs, state = start
-        first = jnp.ones(obs.shape[0], bool)
-
-        def step(loop: tuple, t: jax.Array) -> tuple[tuple, tuple[jax.Array, ...]]:
-            obs, state, carry = loop
-            action, carry = act(obs, carry, first & (t == 0), jax.random.fold_in(key, t))
-            out = jax.vmap(env.step, in_axes=(None, 0, 0, None))(key, state, action, params)
-            return (out.obs, out.state, carry), (out.state.xyz, out.info["speed"], out.reward)
-
-        times = jnp.arange(params.horizon)
-        _, (xyz, speed, reward) = jax.lax.scan(step, (obs, state, carry), times)
-        xyz = jnp.concatenate([state.xyz[None], xyz])
+        xyz, speed, reward = scan_episodes(env, params, act, carry, start, key, params.horizon,
+                                           lambda out: (out.state.xyz, out.info["speed"], out.reward))
+        xyz = jnp.concatenate([start[1].xyz[None], xyz])
         return jnp.swapaxes(xyz, 0, 1), speed.T, reward.T
 
     xyz, speed, reward = jax.device_get(jax.jit(run)(carry, start, key))
