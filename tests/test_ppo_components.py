@@ -74,7 +74,7 @@ def test_rollout_log_probs_equal_the_update_recomputation(rollout):
     def recompute(params, batch):
         _, mean, log_std, value = trainer.network.apply(params, batch.carry, batch.obs, batch.starts)
         log_prob = jax.vmap(jax.vmap(lambda m, u: _log_prob(m, log_std, u)))(mean, batch.u)
-        return log_prob, value, ppo_loss(params, trainer.network.apply, batch, config)[1]
+        return log_prob, value, ppo_loss(params, trainer.network.apply, batch, config, box.low, box.high)[1]
 
     recomputed, value, metrics = recompute(state.params, batch)
     np.testing.assert_allclose(recomputed, batch.log_prob, atol=1e-5)

@@ -259,7 +259,7 @@ def _resume_plan(args: argparse.Namespace) -> TrainPlan:
         if args.total_steps < config.total_steps:
             raise UsageError(f"--total-steps {args.total_steps} is below the run's {config.total_steps}: "
                              f"it may only be raised when resuming")
-        config = PPOConfig.from_dict({**config.to_dict(), "total_steps": args.total_steps})
+        config = config.with_total_steps(args.total_steps, run.checkpoint_steps()[-1])
     return TrainPlan(config, record.get("seed", 0), run.path, resume=True, record=record)
 
 

@@ -1,10 +1,11 @@
 """The chunked training loop over a run directory: train a chunk, record it, checkpoint it, repeat.
 
 Any trainer with ``run_chunk(state) -> (state, metrics)`` and ``num_updates`` works (see
-:mod:`jaxsimrl.agents.ppo`). After every chunk, in this order and with Ctrl-C held back until all
-three are on disk: the metrics rows, the checkpoint (named by the number of updates done) and
-summary.json. A run interrupted anywhere therefore resumes from a checkpoint whose updates all have
-metrics rows, and :meth:`MetricsLog.load` drops the rows of a chunk whose checkpoint never landed.
+:mod:`jaxsimrl.agents.ppo`). After every chunk, in this order and with Ctrl-C held back from the start
+of the chunk until all three are on disk: the metrics rows, the checkpoint (named by the number of
+updates done) and summary.json. A run interrupted anywhere therefore resumes from a checkpoint whose
+updates all have metrics rows, and :meth:`MetricsLog.load` drops the rows of a chunk whose checkpoint
+never landed.
 """
 
 from __future__ import annotations
@@ -22,10 +23,10 @@ import jax
 import numpy as np
 
 from jaxsimrl.runs.checkpoint import Checkpoints
-from jaxsimrl.runs.progress import TrainingProgress
 from jaxsimrl.runs.run_dir import MetricsLog, Row, RunDir, rows_with_episodes, summarise
 
 ChunkHook = Callable[[int], None]
+StopTest = Callable[[], bool]
 
 
 @contextlib.contextmanager
@@ -79,37 +80,56 @@ class Session:
     checkpoints: Checkpoints
     meta: dict[str, Any]  # JSON stored with every checkpoint (the run's config record)
     summary_extra: dict[str, Any] = field(default_factory=dict)  # copied into summary.json
+    # Called with the updates done after a chunk's metrics rows are written and before its checkpoint:
+    # where other per-update records (a host env's episodes.csv) are written under the same rule.
+    before_checkpoint: ChunkHook | None = None
+    # Further summary.json entries computed after every chunk (may override "complete").
+    summary_hook: Callable[[dict[str, Any]], dict[str, Any]] | None = None
 
     def write_summary(self) -> dict[str, Any]:
         """Write summary.json from the metrics rows so far and return it."""
         num_updates = self.trainer.num_updates
         summary = summarise(self.log.rows, {**self.summary_extra, "num_updates": num_updates})
         summary["complete"] = summary["updates"] >= num_updates
+        if self.summary_hook is not None:
+            summary.update(self.summary_hook(summary))
         self.run.write_summary(summary)
         return summary
 
 
-def train(session: Session, state: Any, done: int, progress: TrainingProgress,
-          on_chunk: ChunkHook | None = None) -> Any:
-    """Run chunks from ``done`` updates until ``trainer.num_updates``; returns the final state.
+def _run_and_save(session: Session, state: Any, done: int) -> tuple[Any, int, list[Row]]:
+    """One chunk: train it, then write its metrics rows, checkpoint and summary."""
+    trainer, log = session.trainer, session.log
+    started = time.perf_counter()
+    state, metrics = trainer.run_chunk(state)
+    metrics = jax.device_get(metrics)  # waits for the chunk, so the timing below is honest
+    chunk_time = time.perf_counter() - started
+    count = min(len(metrics["env_steps"]), trainer.num_updates - done)
+    rows = chunk_rows(metrics, done + 1, count, log.env_steps, log.wall_time_s, chunk_time)
+    done += count
+    log.extend(rows)
+    if session.before_checkpoint is not None:
+        session.before_checkpoint(done)
+    session.checkpoints.save(done, state, {**session.meta, "update": done, "env_steps": log.env_steps,
+                                           "wall_time_s": log.wall_time_s})
+    session.write_summary()
+    return state, done, rows
+
+
+def train(session: Session, state: Any, done: int, progress: Any,
+          on_chunk: ChunkHook | None = None, until: StopTest | None = None) -> Any:
+    """Run chunks from ``done`` updates until ``trainer.num_updates`` (or until ``until()`` is true);
+    returns the final state. ``progress`` is a TrainingProgress or anything with its ``update``.
 
     ``on_chunk(updates_done)`` is called after each chunk is on disk (tests use it to stop a run at a
     chosen point, as a crash would).
     """
     trainer, log = session.trainer, session.log
-    while done < trainer.num_updates:
-        started = time.perf_counter()
-        state, metrics = trainer.run_chunk(state)
-        metrics = jax.device_get(metrics)  # waits for the chunk, so the timing below is honest
-        chunk_time = time.perf_counter() - started
-        count = min(len(metrics["env_steps"]), trainer.num_updates - done)
-        rows = chunk_rows(metrics, done + 1, count, log.env_steps, log.wall_time_s, chunk_time)
-        done += count
+    while done < trainer.num_updates and not (until is not None and until()):
+        # Ctrl-C is held back for the whole chunk: a jitted call cannot be interrupted anyway (the
+        # signal waits until it returns), and this way the chunk in flight is saved, not dropped.
         with interrupts_deferred():
-            log.extend(rows)
-            session.checkpoints.save(done, state, {**session.meta, "update": done, "env_steps": log.env_steps,
-                                                   "wall_time_s": log.wall_time_s})
-            session.write_summary()
+            state, done, rows = _run_and_save(session, state, done)
         progress.update(log.env_steps, rows[-1]["steps_per_s"], latest_return(log.rows), done,
                         trainer.num_updates)
         if on_chunk is not None:

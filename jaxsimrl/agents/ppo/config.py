@@ -29,7 +29,12 @@ class PPOConfig:
     lstm_size: int = 256
     activation: str = "tanh"
     lr: float = 2.5e-4
-    anneal_lr: bool = False
+    anneal_lr: bool = False  # linear decay to 0 at the last update
+    # Where the linear decay starts: update anneal_start_update at rate anneal_start_lr (None = lr).
+    # Fresh runs decay from lr at update 0; raising total_steps on resume moves the anchor to the resume
+    # point at the rate reached there (see with_total_steps), so the rate never jumps back up.
+    anneal_start_update: int = 0
+    anneal_start_lr: float | None = None
     max_grad_norm: float = 0.5
     gamma: float = 0.99
     gae_lambda: float = 0.95
@@ -43,6 +48,9 @@ class PPOConfig:
     seq_len: int = 50  # steps per training chunk (LSTM truncated backprop length)
     normalize_obs: bool = True
     obs_clip: float = 10.0  # normalised observations are clipped to +-obs_clip
+    # Lower bound of the std the normaliser divides by: a feature that is (nearly) constant in the
+    # statistics, e.g. at reset, must not be blown up to +-obs_clip by its first change.
+    obs_std_floor: float = 0.01
     reward_scale: float = 0.01  # rewards are multiplied by this before GAE (keeps values O(1))
     init_log_std: float = -0.5  # initial log std of the pre-squash Gaussian
     updates_per_chunk: int = 5  # updates per jitted run_chunk call (progress / checkpoint granularity)
@@ -62,6 +70,22 @@ class PPOConfig:
         """Training sequences of length seq_len cut from each env's rollout."""
         return self.steps_per_env // self.seq_len
 
+    def learning_rate(self, update: float) -> float:
+        """The rate used in update ``update`` (0-based, fractions allowed: SGD steps within it)."""
+        if not self.anneal_lr:
+            return self.lr
+        start = self.lr if self.anneal_start_lr is None else self.anneal_start_lr
+        span = max(self.num_updates - self.anneal_start_update, 1)
+        return start * min(max(1.0 - (update - self.anneal_start_update) / span, 0.0), 1.0)
+
+    def with_total_steps(self, total_steps: int, updates_done: int) -> PPOConfig:
+        """This config trained further, to ``total_steps``, from ``updates_done`` updates: an annealed
+        rate continues from where it was instead of restarting its decay."""
+        values = {**self.to_dict(), "total_steps": total_steps}
+        if self.anneal_lr and total_steps != self.total_steps:
+            values.update(anneal_start_update=updates_done, anneal_start_lr=self.learning_rate(updates_done))
+        return PPOConfig.from_dict(values)
+
     # ---- validation / serialisation ------------------------------------------------------------
     def validate(self) -> PPOConfig:
         """Raise ValueError with a one-line message naming the first bad field; return self."""
@@ -71,6 +95,10 @@ class PPOConfig:
                 if not ok(value):
                     raise ValueError(f"{name} must be {what}, got {value!r}")
         self._validate_divisibility()
+        if self.anneal_start_lr is not None and not (_is_number(self.anneal_start_lr)
+                                                     and 0 <= self.anneal_start_lr < _INF):
+            raise ValueError(f"anneal_start_lr must be null or a non-negative number, got "
+                             f"{self.anneal_start_lr!r}")
         return self
 
     def _validate_divisibility(self) -> None:
@@ -124,10 +152,12 @@ _INF = float("inf")
 _FIELD_RULES: tuple[tuple[tuple[str, ...], Callable[[Any], bool], str], ...] = (
     (("num_envs", "steps_per_update", "total_steps", "lstm_size", "update_epochs", "num_minibatches",
       "seq_len", "updates_per_chunk"), lambda v: _is_int(v) and v > 0, "a positive integer"),
+    (("anneal_start_update",), lambda v: _is_int(v) and v >= 0, "a non-negative integer"),
     (("lr", "max_grad_norm", "clip_eps", "obs_clip", "reward_scale"),
      lambda v: _is_number(v) and 0 < v < _INF, "a positive number"),
     (("gamma", "gae_lambda"), lambda v: _is_number(v) and 0 <= v <= 1, "a number in [0, 1]"),
-    (("ent_coef", "vf_coef"), lambda v: _is_number(v) and 0 <= v < _INF, "a non-negative number"),
+    (("ent_coef", "vf_coef", "obs_std_floor"), lambda v: _is_number(v) and 0 <= v < _INF,
+     "a non-negative number"),
     (("network",), lambda v: v in NETWORKS, f"one of {NETWORKS}"),
     (("activation",), lambda v: v in ACTIVATIONS, f"one of {ACTIVATIONS}"),
     (("hidden_sizes",), lambda v: isinstance(v, tuple | list) and bool(v)

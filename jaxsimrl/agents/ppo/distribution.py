@@ -10,7 +10,13 @@ edges). The rollout stores ``u`` and ``log N(u; mu, sigma)``, and the PPO update
 ``log N(u; mu', sigma')`` for the same ``u``. The exact log-density of the squashed action would add
 ``-sum log|d action / d u|``, a term that depends only on ``u``, not on the parameters; it cancels in the
 ratio pi'(a)/pi(a), so PPO's ratio, KL estimate and clipping are exactly those of the squashed policy.
-The entropy bonus uses the Gaussian's entropy (the squashed policy's entropy has no closed form).
+The entropy (reported, and the bonus) is that of the squashed action in the box,
+``H(action) = H(u) + E[log |d action / d u|]``: the Gaussian's own entropy grows without bound with
+sigma, so a bonus on it pushes sigma up for ever and the policy turns bang-bang on the box's edges,
+while the squashed entropy peaks at a finite sigma. The expectation has no closed form; it is a sum
+over action dimensions of 1-D Gaussian expectations, computed with Gauss-Hermite quadrature
+(32 nodes: deterministic and differentiable; error < 1e-7 nats per dimension for sigma <= 1 and
+~3e-3 at sigma = 3, against adaptive quadrature).
 The deterministic action is the mean ``mu`` mapped through the same function.
 """
 
@@ -19,6 +25,9 @@ from __future__ import annotations
 import distrax
 import jax
 import jax.numpy as jnp
+import numpy as np
+
+_HERMITE_NODES, _HERMITE_WEIGHTS = np.polynomial.hermite.hermgauss(32)
 
 
 def gaussian(mean: jax.Array, log_std: jax.Array) -> distrax.MultivariateNormalDiag:
@@ -34,3 +43,17 @@ def to_box(u: jax.Array, low: jax.Array, high: jax.Array) -> jax.Array:
 def sample(key: jax.Array, mean: jax.Array, log_std: jax.Array) -> tuple[jax.Array, jax.Array]:
     """Sample the pre-squash ``u`` and return it with its Gaussian log-probability."""
     return gaussian(mean, log_std).sample_and_log_prob(seed=key)
+
+
+def log_abs_tanh_jacobian(u: jax.Array) -> jax.Array:
+    """log(1 - tanh(u)^2), stable for large |u|."""
+    return 2.0 * (jnp.log(2.0) - u - jax.nn.softplus(-2.0 * u))
+
+
+def squashed_entropy(mean: jax.Array, log_std: jax.Array, low: jax.Array, high: jax.Array) -> jax.Array:
+    """Entropy of ``to_box(u)``, u ~ N(mean, exp(log_std)) (mean (..., A)); one value per batch entry."""
+    std = jnp.broadcast_to(jnp.exp(log_std), mean.shape)
+    nodes = mean[..., None] + np.sqrt(2.0) * std[..., None] * _HERMITE_NODES  # (..., A, nodes)
+    expected_log_jac = jnp.sum(log_abs_tanh_jacobian(nodes) * _HERMITE_WEIGHTS, axis=-1) / np.sqrt(np.pi)
+    half_width = jnp.log(0.5 * (jnp.asarray(high) - jnp.asarray(low)))
+    return gaussian(mean, log_std).entropy() + jnp.sum(expected_log_jac + half_width, axis=-1)

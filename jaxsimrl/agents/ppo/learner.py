@@ -20,10 +20,13 @@ from jaxsimrl.agents.ppo.rollout import RolloutContext, Transition
 
 
 def make_optimizer(config: Any, num_updates: int) -> tuple[optax.GradientTransformation, optax.Schedule]:
-    """Adam with global-norm gradient clipping; the learning rate optionally anneals linearly to 0."""
-    steps = num_updates * config.update_epochs * config.num_minibatches
+    """Adam with global-norm gradient clipping; the learning rate optionally anneals linearly to 0
+    (from ``config.anneal_start_update``, see PPOConfig.learning_rate; the schedule counts SGD steps)."""
+    per_update = config.update_epochs * config.num_minibatches
     if config.anneal_lr:
-        schedule = optax.linear_schedule(config.lr, 0.0, steps)
+        start = config.lr if config.anneal_start_lr is None else config.anneal_start_lr
+        begin = config.anneal_start_update * per_update
+        schedule = optax.linear_schedule(start, 0.0, max(num_updates * per_update - begin, 1), begin)
     else:
         schedule = optax.constant_schedule(config.lr)
     tx = optax.chain(optax.clip_by_global_norm(config.max_grad_norm), optax.adam(schedule, eps=1e-5))
@@ -63,7 +66,7 @@ def learn(ctx: RolloutContext, tx: optax.GradientTransformation, params: Any, op
         batch = _minibatch(data, chunk_ids)
         if cfg.normalize_advantages:
             batch = batch._replace(advantage=normalize_advantages(batch.advantage, ctx.axis_name))
-        grads, metrics = grad_fn(params, ctx.apply_fn, batch, cfg)
+        grads, metrics = grad_fn(params, ctx.apply_fn, batch, cfg, ctx.low, ctx.high)
         if ctx.axis_name is not None:
             grads, metrics = jax.lax.pmean((grads, metrics), ctx.axis_name)
         updates, opt_state = tx.update(grads, opt_state, params)

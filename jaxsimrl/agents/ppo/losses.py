@@ -1,8 +1,9 @@
 """GAE(lambda) and the PPO clipped-surrogate loss.
 
-Bootstrapping: after a step that *terminated* its episode the next value is 0; after a step that was
-*truncated* it is ``final_values[t]``, the critic's value of the episode's last real observation (the
-rollout evaluates it before resetting the env); otherwise it is ``values[t + 1]`` (``last_value`` after
+Bootstrapping: after a step that *terminated* its episode the next value is 0 (also when the same
+step hit a time cap: the task's end wins); after a step that was only *truncated* it is
+``final_values[t]``, the critic's value of the episode's last real observation (the rollout evaluates
+it on the pre-reset observation); otherwise it is ``values[t + 1]`` (``last_value`` after
 the final step). The GAE recursion is cut at every episode end.
 """
 
@@ -13,7 +14,7 @@ from typing import Any, NamedTuple
 import jax
 import jax.numpy as jnp
 
-from jaxsimrl.agents.ppo.distribution import gaussian
+from jaxsimrl.agents.ppo.distribution import gaussian, squashed_entropy
 
 
 def compute_gae(rewards: jax.Array, values: jax.Array, terminated: jax.Array, truncated: jax.Array,
@@ -22,10 +23,11 @@ def compute_gae(rewards: jax.Array, values: jax.Array, terminated: jax.Array, tr
     """Advantages and value targets for time-major (T, ...) arrays.
 
     ``values[t]`` = V(obs_t); ``final_values[t]`` = V(final obs of step t), used only where
-    ``truncated[t]``; ``last_value`` = V(obs after the last step). Returns (advantages, advantages + values).
+    ``truncated[t] & ~terminated[t]``; ``last_value`` = V(obs after the last step).
+    Returns (advantages, advantages + values).
     """
     next_values = jnp.concatenate([values[1:], last_value[None]], axis=0)
-    next_values = jnp.where(truncated, final_values, jnp.where(terminated, 0.0, next_values))
+    next_values = jnp.where(terminated, 0.0, jnp.where(truncated, final_values, next_values))
     not_done = 1.0 - (terminated | truncated).astype(values.dtype)
     deltas = rewards + gamma * next_values - values
 
@@ -64,8 +66,11 @@ def normalize_advantages(adv: jax.Array, axis_name: str | None) -> jax.Array:
     return (adv - mean) / (jnp.sqrt(var) + 1e-8)
 
 
-def ppo_loss(params: Any, apply_fn: Any, batch: Batch, config: Any) -> tuple[jax.Array, dict[str, jax.Array]]:
+def ppo_loss(params: Any, apply_fn: Any, batch: Batch, config: Any, low: jax.Array, high: jax.Array
+             ) -> tuple[jax.Array, dict[str, jax.Array]]:
     """Clipped surrogate + value loss - entropy bonus, averaged over this device's part of the batch.
+
+    The entropy is that of the squashed action in the box [low, high] (see distribution.py).
 
     No collectives in here on purpose: the caller averages gradients and metrics across devices
     (pmean of equal-size local means = the global mean), and standardises advantages beforehand.
@@ -84,7 +89,7 @@ def ppo_loss(params: Any, apply_fn: Any, batch: Batch, config: Any) -> tuple[jax
         clipped = batch.value + jnp.clip(value - batch.value, -config.clip_eps, config.clip_eps)
         value_err = jnp.maximum(value_err, jnp.square(clipped - batch.target))
     value_loss = 0.5 * jnp.mean(value_err)
-    entropy = jnp.mean(dist.entropy())
+    entropy = jnp.mean(squashed_entropy(mean, log_std, low, high))
     total = policy_loss + config.vf_coef * value_loss - config.ent_coef * entropy
     metrics = {
         "policy_loss": policy_loss,

@@ -58,10 +58,10 @@ def update(state: NormalizerState, obs: jax.Array, axis_name: str | None = None)
     return merge(state, batch_stats(obs, axis_name))
 
 
-def normalize(state: NormalizerState, obs: jax.Array, clip: float) -> jax.Array:
-    """(obs - mean) / std, clipped to +-clip; the identity while no data has been seen."""
+def normalize(state: NormalizerState, obs: jax.Array, clip: float, std_floor: float = 0.0) -> jax.Array:
+    """(obs - mean) / max(std, std_floor), clipped to +-clip; the identity while no data has been seen."""
     var = state.m2 / jnp.maximum(state.count, 1.0)
     seen = state.count > 0
     mean = jnp.where(seen, state.mean, 0.0)
-    std = jnp.where(seen, jnp.sqrt(var + _EPS), 1.0)
+    std = jnp.where(seen, jnp.maximum(jnp.sqrt(var + _EPS), std_floor), 1.0)
     return jnp.clip((obs - mean) / std, -clip, clip)

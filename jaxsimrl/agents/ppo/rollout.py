@@ -2,10 +2,11 @@
 
 The scan is nested: an outer scan over the ``chunks_per_env`` training sequences and an inner one over
 the ``seq_len`` steps of each, so the recurrent carry at the start of every chunk is stored without
-keeping the carry of every step. Env steps never auto-reset: after a step whose episode ended
-(terminated or truncated), the rollout resets that env and flags its next observation as an episode
-start (the network zeroes the carry there). For a truncated step it first evaluates the critic on the
-final (pre-reset) observation and stores it for the GAE bootstrap (see losses.py).
+keeping the carry of every step. The envs sit behind a :class:`jaxsimrl.envs.vec.VecEnv`, which
+auto-resets them: after a step whose episode ended (terminated or truncated) the next observation is
+the first of a new episode and is flagged as an episode start (the network zeroes the carry there).
+For a step that was truncated (and not terminated) the critic is evaluated on the step's final
+(pre-reset) observation, ``final_obs``, and stored for the GAE bootstrap (see losses.py).
 
 Random numbers are drawn per *global* env index and sliced to this device's envs, so sharding the envs
 over devices does not change any sample.
@@ -69,8 +70,7 @@ class RolloutContext(NamedTuple):
     """What the rollout needs besides the state (static per trainer)."""
 
     apply_fn: Any
-    env: Any
-    env_params: Any
+    vec: Any  # jaxsimrl.envs.vec.VecEnv
     config: Any
     low: jax.Array
     high: jax.Array
@@ -93,7 +93,9 @@ def local_keys(ctx: RolloutContext, key: jax.Array) -> jax.Array:
 
 def observe(config: PPOConfig, normalizer: NormalizerState, obs: jax.Array) -> jax.Array:
     """What the network sees, in training and when acting: the (optionally) normalised observation."""
-    return normalize(normalizer, obs, config.obs_clip) if config.normalize_obs else obs
+    if not config.normalize_obs:
+        return obs
+    return normalize(normalizer, obs, config.obs_clip, config.obs_std_floor)
 
 
 def _env_step(ctx: RolloutContext, runner: RunnerState, key: jax.Array
@@ -104,8 +106,8 @@ def _env_step(ctx: RolloutContext, runner: RunnerState, key: jax.Array
     sample = jax.vmap(distribution.sample, in_axes=(0, 0, None))
     u, log_prob = sample(local_keys(ctx, act_key), mean[0], log_std)
     action = distribution.to_box(u, ctx.low, ctx.high)
-    step = jax.vmap(ctx.env.step, in_axes=(0, 0, 0, None))(
-        local_keys(ctx, step_key), runner.env_state, action, ctx.env_params)
+    env_keys = jnp.stack([local_keys(ctx, step_key), local_keys(ctx, reset_key)], axis=1)
+    step = ctx.vec.step(env_keys, runner.env_state, action)
     done = step.terminated | step.truncated
     transition = Transition(obs, runner.obs, runner.starts, u, log_prob, value[0],
                             step.reward * ctx.config.reward_scale, step.terminated, step.truncated,
@@ -113,15 +115,8 @@ def _env_step(ctx: RolloutContext, runner: RunnerState, key: jax.Array
 
     episode_return = runner.episode_return + step.reward
     stats = EpisodeStats(jnp.sum(jnp.where(done, episode_return, 0.0)), jnp.sum(done.astype(jnp.float32)))
-    reset_obs, reset_state = jax.vmap(ctx.env.reset, in_axes=(0, None))(local_keys(ctx, reset_key),
-                                                                         ctx.env_params)
-
-    def pick(fresh: jax.Array, old: jax.Array) -> jax.Array:
-        return jnp.where(done.reshape(done.shape + (1,) * (old.ndim - 1)), fresh, old)
-
-    runner = runner.replace(
-        env_state=jax.tree.map(pick, reset_state, step.state), obs=pick(reset_obs, step.obs), starts=done,
-        carry=carry, episode_return=jnp.where(done, 0.0, episode_return))
+    runner = runner.replace(env_state=step.state, obs=step.obs, starts=done, carry=carry,
+                            episode_return=jnp.where(done, 0.0, episode_return))
     return runner, transition, stats
 
 
@@ -159,12 +154,14 @@ def critic_value(ctx: RolloutContext, params: Any, normalizer: NormalizerState, 
 
 
 def _bootstrap_value(ctx: RolloutContext, runner: RunnerState, carry: Any, step: Any) -> jax.Array:
-    """V(final obs) of the steps that truncated; skipped (zeros) when no env truncated."""
-    def value_of_final_obs() -> jax.Array:
-        value = critic_value(ctx, runner.params, runner.normalizer, carry, step.obs,
-                             jnp.zeros_like(runner.starts))
-        return jnp.where(step.truncated, value, 0.0)
+    """V(final obs) of the steps that were truncated and not terminated; zeros when there is none."""
+    bootstrap = step.truncated & ~step.terminated
 
-    # under vmap/shard_map this stays a real branch: the extra forward pass runs only when needed
-    return jax.lax.cond(jnp.any(step.truncated), value_of_final_obs,
+    def value_of_final_obs() -> jax.Array:
+        value = critic_value(ctx, runner.params, runner.normalizer, carry, step.final_obs,
+                             jnp.zeros_like(runner.starts))
+        return jnp.where(bootstrap, value, 0.0)
+
+    # under shard_map this stays a real branch: the extra forward pass runs only when needed
+    return jax.lax.cond(jnp.any(bootstrap), value_of_final_obs,
                         lambda: jnp.zeros(step.reward.shape, jnp.float32))

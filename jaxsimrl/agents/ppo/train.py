@@ -6,6 +6,11 @@ call on an explicit :class:`RunnerState`. Both run the same update under ``jax.s
 mesh of devices (axis "envs"): envs (and their rollouts) are split over devices, gradients are
 ``pmean``-ed and normaliser statistics merged with ``psum``, so the learning does not depend on the
 device count. One update = rollout (rollout.py) -> GAE + SGD (learner.py) -> normaliser update.
+
+Every env sits behind a :class:`jaxsimrl.envs.vec.VecEnv`: a pure-JAX env is wrapped in a
+:class:`~jaxsimrl.envs.vec.JaxVecEnv` (vmapped, auto-reset with ``where``), a host env batch
+(OpenFOAM) is a :class:`~jaxsimrl.envs.host.HostVecEnv` stepped through one ``io_callback`` per step.
+Host envs run on a mesh of one device (their batch cannot be split between device shards).
 """
 
 from __future__ import annotations
@@ -26,6 +31,7 @@ from jaxsimrl.agents.ppo.learner import learn, make_optimizer
 from jaxsimrl.agents.ppo.networks import initial_carry
 from jaxsimrl.agents.ppo.policy import Policy
 from jaxsimrl.agents.ppo.rollout import RolloutContext, RunnerState, collect, critic_value
+from jaxsimrl.envs.vec import JaxVecEnv
 
 AXIS = "envs"
 _NORMALIZER_SEED_SAMPLES = 1024  # reset observations that seed the normaliser before the first update
@@ -40,13 +46,13 @@ def _state_specs() -> RunnerState:
 
 
 class PPOTrainer:
-    """PPO on a pure-JAX env; build it with :func:`make_train`. ``policy`` acts with its states."""
+    """PPO on a batch of envs; build it with :func:`make_train`. ``policy`` acts with its states."""
 
-    def __init__(self, config: PPOConfig, env: Any, env_params: Any = None,
-                 devices: Sequence[jax.Device] | None = None) -> None:
+    def __init__(self, config: PPOConfig, vec: Any, devices: Sequence[jax.Device] | None = None) -> None:
         self.config = config.validate()
-        self.env = env
-        self.env_params = env.default_params() if env_params is None else env_params
+        self.vec = vec
+        if vec.num_envs != config.num_envs:
+            raise ValueError(f"the env batch has {vec.num_envs} envs but num_envs is {config.num_envs}")
         self.devices = list(jax.devices() if devices is None else devices)
         if config.num_envs % len(self.devices):
             raise ValueError(f"num_envs ({config.num_envs}) must be divisible by the number of devices "
@@ -54,22 +60,38 @@ class PPOTrainer:
         self.mesh = Mesh(np.array(self.devices), (AXIS,))
         self.num_updates = config.num_updates
         self.num_chunks = math.ceil(self.num_updates / config.updates_per_chunk)
-        self.policy = Policy(config, env, self.env_params)  # acts with the network and box trained here
+        # acts with the network and action box trained here
+        self.policy = Policy(config, _BoxOnly(vec.action_space()))
         self.network = self.policy.network
         self.tx, self.schedule = make_optimizer(config, self.num_updates)
-        self.ctx = RolloutContext(self.network.apply, env, self.env_params, config, self.policy.low,
-                                  self.policy.high, config.num_envs // len(self.devices), AXIS)
+        self.ctx = RolloutContext(self.network.apply, vec, config, self.policy.low, self.policy.high,
+                                  config.num_envs // len(self.devices), AXIS)
         self._specs = _state_specs()
         shardings = jax.tree.map(lambda spec: NamedSharding(self.mesh, spec), self._specs,
                                  is_leaf=lambda x: isinstance(x, P))
         self._init_jit = jax.jit(self._init, out_shardings=shardings)  # built in place on the mesh
+        self._restart_jit = jax.jit(self._restart, out_shardings=shardings)
         self._chunk = jax.jit(self._sharded(self._run_updates, config.updates_per_chunk))
         self.train = jax.jit(self._train)
+
+    @property
+    def env(self) -> Any:
+        """The pure-JAX env behind the batch (JaxVecEnv only)."""
+        return self.vec.env
+
+    @property
+    def env_params(self) -> Any:
+        return self.vec.env_params
 
     # ---- public API ------------------------------------------------------------------------------
     def init(self, key: jax.Array) -> RunnerState:
         """A fresh RunnerState, placed on the mesh (env fields sharded, the rest replicated)."""
         return self._init_jit(key)
+
+    def restart_episodes(self, state: RunnerState, key: jax.Array) -> RunnerState:
+        """``state`` with a new episode started in every env (learner fields untouched): a host env
+        resumed from a checkpoint, whose solvers did not survive the process, starts here."""
+        return self._restart_jit(state, key)
 
     def run_chunk(self, state: RunnerState) -> tuple[RunnerState, dict[str, jax.Array]]:
         """Run up to ``updates_per_chunk`` updates, never past ``num_updates``.
@@ -88,8 +110,7 @@ class PPOTrainer:
         if jnp.issubdtype(key.dtype, jax.dtypes.prng_key):
             key = jax.random.key_data(key)  # keep RunnerState plain uint32 arrays (orbax-saveable)
         net_key, env_key, norm_key, rng = jax.random.split(key, 4)
-        obs, env_state = jax.vmap(self.env.reset, in_axes=(0, None))(
-            jax.random.split(env_key, cfg.num_envs), self.env_params)
+        obs, env_state = self.vec.reset(jax.random.split(env_key, cfg.num_envs))
         carry = initial_carry(cfg, cfg.num_envs)
         starts = jnp.ones(cfg.num_envs, bool)
         params = self.network.init(net_key, initial_carry(cfg, 1), obs[:1][None], starts[:1][None])
@@ -98,10 +119,20 @@ class PPOTrainer:
                            starts=starts, carry=carry, episode_return=jnp.zeros(cfg.num_envs, jnp.float32),
                            rng=rng, update_step=jnp.int32(0))
 
+    def _restart(self, state: RunnerState, key: jax.Array) -> RunnerState:
+        if jnp.issubdtype(key.dtype, jax.dtypes.prng_key):
+            key = jax.random.key_data(key)
+        n = self.config.num_envs
+        obs, env_state = self.vec.reset(jax.random.split(key, n))
+        return state.replace(env_state=env_state, obs=obs, starts=jnp.ones(n, bool),
+                             carry=initial_carry(self.config, n), episode_return=jnp.zeros(n, jnp.float32))
+
     def _seed_normalizer(self, key: jax.Array) -> norm.NormalizerState:
-        """Statistics of many reset observations, so the first rollout already sees O(1) inputs."""
-        obs, _ = jax.vmap(self.env.reset, in_axes=(0, None))(
-            jax.random.split(key, _NORMALIZER_SEED_SAMPLES), self.env_params)
+        """Statistics of many reset observations, so the first rollout already sees O(1) inputs; envs
+        without cheap samples (host envs) start from empty statistics: their own documented scaling."""
+        obs = self.vec.sample_observations(key, _NORMALIZER_SEED_SAMPLES)
+        if obs is None:
+            return norm.init_normalizer(int(np.prod(self.vec.observation_space().shape)))
         return norm.batch_stats(obs)
 
     def _update(self, state: RunnerState) -> tuple[RunnerState, dict[str, jax.Array]]:
@@ -144,12 +175,30 @@ class PPOTrainer:
         return self._sharded(self._run_updates, self.num_updates)(self._init(key))
 
 
-def make_train(config: PPOConfig, env: Any = None, env_params: Any = None,
-               devices: Sequence[jax.Device] | None = None) -> PPOTrainer:
-    """Build a trainer; ``env`` defaults to the Lorenz env, ``env_params`` to ``env.default_params()``,
-    ``devices`` to all of ``jax.devices()`` (num_envs must be divisible by their number)."""
-    if env is None:
-        from jaxsimrl.envs.lorenz import Lorenz
+class _BoxOnly:
+    """The one thing Policy asks of an env: its action box."""
 
-        env = Lorenz()
-    return PPOTrainer(config, env, env_params, devices)
+    def __init__(self, box: Any) -> None:
+        self.box = box
+
+    def default_params(self) -> None:
+        return None
+
+    def action_space(self, params: Any = None) -> Any:
+        return self.box
+
+
+def make_train(config: PPOConfig, env: Any = None, env_params: Any = None,
+               devices: Sequence[jax.Device] | None = None, vec: Any = None) -> PPOTrainer:
+    """Build a trainer on a pure-JAX ``env`` (default: the Lorenz env; ``env_params`` default to
+    ``env.default_params()``), or on a ready VecEnv ``vec`` (e.g. a host env batch). ``devices``
+    default to all of ``jax.devices()`` (num_envs must be divisible by their number)."""
+    if vec is None:
+        if env is None:
+            from jaxsimrl.envs.lorenz import Lorenz
+
+            env = Lorenz()
+        vec = JaxVecEnv(env, env_params, config.num_envs)
+    elif env is not None or env_params is not None:
+        raise ValueError("give either env (and env_params) or vec, not both")
+    return PPOTrainer(config, vec, devices)

@@ -1,0 +1,145 @@
+"""HostVecEnv: a batch of host envs (e.g. OpenFOAM cases on a process pool) as a trainer VecEnv.
+
+The batch lives in this Python process and is driven from inside the jitted rollout through
+``jax.experimental.io_callback``: **one** ordered callback per env step carrying the whole (N, action)
+batch, with fixed-shape, fixed-dtype results; nothing is vmapped and no ``lax.cond`` surrounds it (JAX
+refuses to vmap an ordered callback and would serialise an unordered one env by env). The host batch
+fans the actions out to its workers and auto-resets finished envs itself (gymnasium's SAME_STEP
+mode: ``infos["final_obs"]`` holds the pre-reset observation), so infos and episode records stay on
+the host: every ended episode is handed to ``on_episode(env_id, final_info)``.
+
+The callback never raises: solver faults are already outcomes of the batch (an ended episode with a
+cause). Anything else that goes wrong on the host (a bug, a broken pool) is caught and kept in
+:attr:`HostVecEnv.error`; the callback then returns zeros for the rest of the jitted call without
+touching the batch, and the driver raises it as one line once the call has returned
+(:meth:`HostVecEnv.raise_if_failed`), before anything of that call is saved. The callback calls no JAX
+(a callback that dispatches JAX work can deadlock the CPU client).
+
+The host batch needs: ``num_envs``, ``observation_spec`` and ``action_spec`` (BoxSpec-like: low, high,
+shape), ``reset(seed=int) -> (obs, infos)`` and ``step(actions) -> (obs, reward, terminated, truncated,
+infos)``; foam_bridge.batched.BatchedFoamEnv is one.
+"""
+
+from __future__ import annotations
+
+import traceback
+from collections.abc import Callable
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax.experimental import io_callback
+
+from jaxsimrl.envs.protocol import BoxSpec
+from jaxsimrl.envs.vec import VecStep
+
+EpisodeHook = Callable[[int, dict[str, Any]], None]
+
+
+class HostEnvError(RuntimeError):
+    """The host side of the env batch failed (not a solver fault: those end episodes)."""
+
+
+def env_info(infos: dict[str, Any], i: int) -> dict[str, Any]:
+    """Env ``i``'s entries of gymnasium-batched infos (nested dicts are batched key by key)."""
+    return {key: env_info(value, i) if isinstance(value, dict) else value[i]
+            for key, value in infos.items() if not key.startswith("_")}
+
+
+def seed_of(keys: np.ndarray) -> int:
+    """One host seed from a batch of raw PRNG keys (deterministic, any key width)."""
+    words = np.asarray(keys).astype(np.uint64).ravel().tolist()
+    return int(np.random.SeedSequence(words).generate_state(1)[0])
+
+
+class HostVecEnv:
+    """A host env batch behind one io_callback per step (see the module docstring)."""
+
+    def __init__(self, batch: Any, on_episode: EpisodeHook | None = None) -> None:
+        self.batch = batch
+        self.num_envs = int(batch.num_envs)
+        self.obs_dim = int(np.prod(batch.observation_spec.shape))
+        self.on_episode = on_episode or (lambda env_id, info: None)
+        self.error: str | None = None
+
+    # ---- VecEnv ----------------------------------------------------------------------------------
+    def action_space(self) -> BoxSpec:
+        spec = self.batch.action_spec
+        return BoxSpec(jnp.asarray(spec.low, jnp.float32), jnp.asarray(spec.high, jnp.float32),
+                       tuple(spec.shape))
+
+    def observation_space(self) -> BoxSpec:
+        spec = self.batch.observation_spec
+        return BoxSpec(jnp.asarray(spec.low, jnp.float32), jnp.asarray(spec.high, jnp.float32),
+                       tuple(spec.shape))
+
+    def sample_observations(self, key: jax.Array, count: int) -> None:
+        """None: every sample would cost a case build; the normaliser starts empty."""
+        return None
+
+    def reset(self, keys: jax.Array) -> tuple[jax.Array, jax.Array]:
+        """Reset every env of the batch, seeded from ``keys``; the state is the per-env episode count."""
+        shapes = (self._obs_shape(), jax.ShapeDtypeStruct((self.num_envs,), jnp.int32))
+        return io_callback(self._host_reset, shapes, keys, ordered=True)
+
+    def step(self, keys: jax.Array, state: jax.Array, actions: jax.Array) -> VecStep:
+        """Step the whole batch in one host call (``keys`` are unused: the host batch seeds itself)."""
+        n = self.num_envs
+        shapes = VecStep(self._obs_shape(), self._obs_shape(), jax.ShapeDtypeStruct((n,), jnp.float32),
+                         jax.ShapeDtypeStruct((n,), jnp.bool_), jax.ShapeDtypeStruct((n,), jnp.bool_),
+                         jax.ShapeDtypeStruct((n,), jnp.int32))
+        return io_callback(self._host_step, shapes, state, actions, ordered=True)
+
+    # ---- driver side -----------------------------------------------------------------------------
+    def raise_if_failed(self) -> None:
+        """After a jitted call: raise the host failure it hit, if any (one line)."""
+        if self.error is not None:
+            raise HostEnvError(f"the host env batch failed: {self.error}")
+
+    # ---- host callbacks (numpy in, numpy out; never raise) ---------------------------------------
+    def _obs_shape(self) -> jax.ShapeDtypeStruct:
+        return jax.ShapeDtypeStruct((self.num_envs, self.obs_dim), jnp.float32)
+
+    def _host_reset(self, keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        obs = np.zeros((self.num_envs, self.obs_dim), np.float32)
+        if self.error is None:
+            try:
+                obs = self._obs(self.batch.reset(seed=seed_of(keys))[0])
+            except Exception as err:  # noqa: BLE001 - reported by raise_if_failed, after the call
+                self._fail(err)
+        return obs, np.zeros(self.num_envs, np.int32)
+
+    def _host_step(self, state: np.ndarray, actions: np.ndarray) -> VecStep:
+        n = self.num_envs
+        if self.error is None:
+            try:
+                return self._step(np.asarray(state), np.asarray(actions, np.float64))
+            except Exception as err:  # noqa: BLE001
+                self._fail(err)
+        zeros = np.zeros((n, self.obs_dim), np.float32)
+        return VecStep(zeros, zeros, np.zeros(n, np.float32), np.zeros(n, bool), np.zeros(n, bool),
+                       np.asarray(state, np.int32))
+
+    def _step(self, episodes: np.ndarray, actions: np.ndarray) -> VecStep:
+        obs, reward, terminated, truncated, infos = self.batch.step(actions)
+        obs = self._obs(obs)
+        done = np.asarray(terminated, bool) | np.asarray(truncated, bool)
+        final_obs = obs.copy()
+        for i in np.flatnonzero(done):
+            final_obs[i] = np.asarray(infos["final_obs"][i], np.float32)
+            self.on_episode(int(i), env_info(infos["final_info"], int(i)))
+        return VecStep(obs, final_obs, np.asarray(reward, np.float32), np.asarray(terminated, bool),
+                       np.asarray(truncated, bool), (episodes + done).astype(np.int32))
+
+    def _obs(self, obs: Any) -> np.ndarray:
+        obs = np.asarray(obs, np.float32)
+        if obs.shape != (self.num_envs, self.obs_dim):
+            raise ValueError(f"the host batch returned observations of shape {obs.shape}, expected "
+                             f"{(self.num_envs, self.obs_dim)}")
+        return obs
+
+    def _fail(self, err: Exception) -> None:
+        where = traceback.extract_tb(err.__traceback__)[-1:]
+        place = f" ({where[0].filename}:{where[0].lineno})" if where else ""
+        self.error = f"{type(err).__name__}: {err}{place}".replace("\n", " ")

@@ -1,0 +1,130 @@
+"""episodes.csv: one row per finished episode of a host-env (OpenFOAM) training run, and its statistics.
+
+    index, env, update, seed, inlet_velocity, steps, iterations, return, outcome, cause, wall_time_s,
+    solver_idle_s, actions
+
+``update`` is the PPO update whose rollout the episode ended in (1-based); ``actions`` is the JSON list of
+the (alpha_u, alpha_p) pairs it took. The file is rewritten whole and atomically after every update,
+before that update's checkpoint; on resume from checkpoint N the rows of updates after N are dropped (the
+same rule as the metrics files), so a run killed anywhere has no torn and no duplicate row.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import statistics
+from collections import Counter
+from pathlib import Path
+from typing import Any
+
+from jaxsimrl.runs.atomic import atomic_write_text
+
+EPISODES_FILE = "episodes.csv"
+COLUMNS = ("index", "env", "update", "seed", "inlet_velocity", "steps", "iterations", "return", "outcome",
+           "cause", "wall_time_s", "solver_idle_s", "actions")
+#: The paper plots the moving average of iterations to converge over this many episodes.
+MOVING_WINDOW = 100
+
+
+def episode_row(env_id: int, update: int, info: dict[str, Any]) -> dict[str, Any]:
+    """A row from a host batch's final info of an ended episode (its "episode" record)."""
+    record = info.get("episode", {})
+    actions = [[round(float(a), 6) for a in pair] for pair in record.get("actions", [])]
+    return {"env": int(env_id), "update": int(update), "seed": record.get("seed"),
+            "inlet_velocity": _number(record.get("inlet_velocity")), "steps": len(actions),
+            "iterations": int(record.get("iterations", info.get("iterations", 0))),
+            "return": _number(record.get("return")),
+            "outcome": str(record.get("outcome", info.get("outcome", ""))),
+            "cause": str(record.get("cause", info.get("cause", ""))),
+            "wall_time_s": _number(record.get("wall_time_s")),
+            "solver_idle_s": _number(record.get("solver_idle_s", 0.0)), "actions": actions}
+
+
+def _number(value: Any) -> float:
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        return math.nan
+
+
+class EpisodeLog:
+    """The finished episodes of a run (``rows``) mirrored to ``RUN_DIR/episodes.csv``."""
+
+    def __init__(self, path: Path, rows: list[dict[str, Any]] | None = None) -> None:
+        self.path = Path(path)
+        self.rows: list[dict[str, Any]] = rows or []
+        self.pending: list[dict[str, Any]] = []  # ended since the last flush
+
+    @classmethod
+    def load(cls, path: Path, up_to_update: int) -> EpisodeLog:
+        """The rows of updates 1..``up_to_update`` of an existing file (garbled rows are dropped)."""
+        rows = []
+        if Path(path).is_file():
+            for raw in csv.DictReader(io.StringIO(Path(path).read_text(errors="replace"))):
+                row = _parse(raw)
+                if row is not None and row["update"] <= up_to_update:
+                    rows.append(row)
+        return cls(path, rows)
+
+    def add(self, env_id: int, update: int, info: dict[str, Any]) -> None:
+        """Record an ended episode (kept in memory until :meth:`flush`)."""
+        self.pending.append(episode_row(env_id, update, info))
+
+    def flush(self) -> list[dict[str, Any]]:
+        """Append the pending episodes and rewrite the file atomically; returns the new rows."""
+        new, self.pending = self.pending, []
+        for row in new:
+            row["index"] = len(self.rows)
+            self.rows.append(row)
+        atomic_write_text(self.path, _to_csv(self.rows))
+        return new
+
+    def discard_pending(self) -> None:
+        """Forget episodes of an update that will not be saved (its call failed)."""
+        self.pending = []
+
+    # ---- statistics -----------------------------------------------------------------------------
+    def moving_iterations(self, window: int = MOVING_WINDOW) -> float:
+        """Mean iterations of the last ``window`` episodes (NaN before the first)."""
+        last = self.rows[-window:]
+        return statistics.fmean(r["iterations"] for r in last) if last else math.nan
+
+    def outcomes(self) -> dict[str, int]:
+        """Episodes per outcome."""
+        return dict(Counter(r["outcome"] for r in self.rows))
+
+    def busy_s(self) -> float:
+        """Solver-busy seconds of the finished episodes (episode wall time less waiting on the bridge)."""
+        return sum(max(r["wall_time_s"] - r["solver_idle_s"], 0.0) for r in self.rows
+                   if math.isfinite(r["wall_time_s"]) and math.isfinite(r["solver_idle_s"]))
+
+
+def _parse(raw: dict[str, str]) -> dict[str, Any] | None:
+    try:
+        row: dict[str, Any] = {"index": int(raw["index"]), "env": int(raw["env"]),
+                               "update": int(raw["update"]),
+                               "seed": int(raw["seed"]) if raw["seed"] not in ("", "None") else None,
+                               "steps": int(raw["steps"]), "iterations": int(raw["iterations"]),
+                               "outcome": raw["outcome"], "cause": raw["cause"],
+                               "actions": json.loads(raw["actions"])}
+        for name in ("inlet_velocity", "return", "wall_time_s", "solver_idle_s"):
+            row[name] = float(raw[name]) if raw[name] != "" else math.nan
+    except (KeyError, TypeError, ValueError):
+        return None
+    return row
+
+
+def _to_csv(rows: list[dict[str, Any]]) -> str:
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=COLUMNS, lineterminator="\n")
+    writer.writeheader()
+    for row in rows:
+        out = {k: "" if isinstance(row[k], float) and not math.isfinite(row[k]) else row[k]
+               for k in COLUMNS}
+        out["actions"] = json.dumps(row["actions"])
+        out["seed"] = "" if row["seed"] is None else row["seed"]
+        writer.writerow(out)
+    return buffer.getvalue()
