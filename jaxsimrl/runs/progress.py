@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 import sys
-from typing import TextIO
+from typing import Any, TextIO
 
 from rich.console import Console
 from rich.progress import (
@@ -70,3 +70,58 @@ class TrainingProgress:
     def print(self, text: str) -> None:
         """A message that does not disturb the live bar."""
         self.console.print(text, soft_wrap=True)
+
+
+class FoamProgress:
+    """Progress of a host-env (OpenFOAM) run, by episodes: done of the target, the moving mean of the
+    iterations to converge over the last 100 episodes (what the paper plots), failures by outcome,
+    episodes per hour and the pool's utilisation. A live bar on a TTY, one plain line per update off it."""
+
+    def __init__(self, target: int, episodes: Any, pool: int, metrics: Any, stream: TextIO | None = None,
+                 live: bool | None = None) -> None:
+        self.target, self.episodes, self.pool, self.metrics = target, episodes, pool, metrics
+        self.stream = stream if stream is not None else sys.stdout
+        self.console = Console(file=self.stream, highlight=False)
+        self.live = self.console.is_terminal if live is None else live
+        self._progress: Progress | None = None
+        self._task = None
+
+    def __enter__(self) -> FoamProgress:
+        if self.live:
+            self._progress = Progress(
+                TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
+                TextColumn("episodes  {task.fields[stats]}"), TimeElapsedColumn(), TimeRemainingColumn(),
+                console=self.console)
+            self._progress.start()
+            self._task = self._progress.add_task("compiling + first update", total=self.target,
+                                                 completed=len(self.episodes.rows), stats="-")
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self._progress is not None:
+            self._progress.stop()
+
+    def stats(self) -> str:
+        """The numbers after the episode count, as one short text."""
+        wall = self.metrics.wall_time_s
+        count = len(self.episodes.rows)
+        outcomes = self.episodes.outcomes()
+        failed = ", ".join(f"{k} {outcomes[k]}" for k in ("crashed", "diverged", "hung") if outcomes.get(k))
+        moving = self.episodes.moving_iterations()
+        moving_text = f"{moving:.0f}" if math.isfinite(moving) else "-"
+        parts = [f"iterations (last 100) {moving_text}", f"failures: {failed or 'none'}"]
+        if wall > 0:
+            parts += [f"{count / wall * 3600:.0f} episodes/h",
+                      f"pool {self.episodes.busy_s() / (self.pool * wall):.0%} busy"]
+        return "  ".join(parts)
+
+    def update(self, env_steps: int, steps_per_s: float, mean_return: float, update: int,
+               num_updates: int) -> None:
+        """Report the state after an update (TrainingProgress's signature; the episode log has the rest)."""
+        count = len(self.episodes.rows)
+        if self._progress is not None:
+            self._progress.update(self._task, description="training", completed=min(count, self.target),
+                                  stats=self.stats())
+        else:
+            self.console.print(f"update {update}  episodes {count}/{self.target}  {self.stats()}",
+                               soft_wrap=True)

@@ -1,0 +1,387 @@
+"""``jaxsimrl train-foam``: PPO on real simpleFoam cases, stepped from the jitted trainer via io_callback.
+
+The same PPO as train-lorenz (jaxsimrl.agents.ppo) on a :class:`jaxsimrl.envs.host.HostVecEnv` over a
+``foam_bridge.batched.BatchedFoamEnv`` of ``--num-envs`` cases on ``--pool`` workers. Defaults are the
+paper's (Pawar & Maulik, "Solver convergence acceleration"): a 2 x 64 tanh MLP, lr 2.5e-4, gamma 1, inlet
+velocity uniform in [35, 65] m/s, actions (alpha_u, alpha_p) in [0.2, 0.95]^2 every 100 iterations, the
+training criterion, 2000 episodes, the built-in backward-facing step (SIMPLEC, k/omega relaxed at 0.8).
+
+One update = ``steps_per_update`` env steps (see :func:`foam_ppo_defaults` for the sizes and why); after
+every update: metrics rows, episodes.csv, a checkpoint, summary.json (in that order, Ctrl-C held back).
+``--resume RUN_DIR`` continues from the last checkpoint with new episodes in every env (the solvers of
+the episodes in flight did not survive the process).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import shutil
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from jaxsimrl.cli.errors import UsageError, positive_float, positive_int
+
+INTERRUPTED = 130
+#: Env steps per update, summed over envs: ~20-30 episodes of the paper's 4-8 steps (see foam_ppo_defaults).
+FOAM_BATCH = 128
+#: PPOConfig fields with a train-foam flag (the others come from --config).
+KNOBS: tuple[tuple[str, Any, str], ...] = (
+    ("steps_per_update", positive_int, f"env steps per PPO update over all envs (default {FOAM_BATCH}, "
+                                       "rounded up to a multiple of 4 x num_envs)"),
+    ("lr", positive_float, "Adam learning rate (paper: 2.5e-4)"),
+    ("gamma", float, "discount factor in [0, 1] (paper: 1)"),
+    ("gae_lambda", float, "GAE lambda in [0, 1]"),
+    ("clip_eps", positive_float, "PPO clipping epsilon"),
+    ("ent_coef", float, "entropy bonus coefficient (>= 0), on the squashed policy's entropy"),
+    ("update_epochs", positive_int, "SGD epochs over each update's batch"),
+    ("num_minibatches", positive_int, "minibatches per epoch"),
+    ("reward_scale", positive_float, "rewards (minus iterations) are multiplied by this before GAE"),
+)
+
+
+def foam_ppo_defaults(num_envs: int) -> dict[str, Any]:
+    """The PPOConfig fields train-foam sets before --config and flags.
+
+    The paper's network and optimiser (2 x 64 tanh MLP, lr 2.5e-4, gamma 1). Batch sizes: the paper's code
+    trained on 200-step batches with minibatches of 128 (RLlib); its episodes last 4-8 steps (400-800
+    iterations / 100), so a batch of ~128 steps holds 20-30 whole episodes, enough for a return estimate
+    with gamma = 1, while an update still comes every few minutes on 2 cores. 4 minibatches x 10 epochs
+    gives 40 SGD steps per update, as RLlib's 30 passes over 1.5 minibatches did. The MLP needs no
+    sequence: seq_len 1. Rewards are -100 per step and down to -max_iterations on a failure: a reward
+    scale of 1e-3 keeps returns (and so the value targets) O(1) (-0.4 to -4).
+    """
+    per_env = max(4, math.ceil(FOAM_BATCH / num_envs))
+    per_env += -per_env % 4
+    return {"num_envs": num_envs, "steps_per_update": per_env * num_envs, "network": "mlp",
+            "hidden_sizes": [64, 64], "activation": "tanh", "lr": 2.5e-4, "gamma": 1.0, "gae_lambda": 0.95,
+            "update_epochs": 10, "num_minibatches": 4, "seq_len": 1, "reward_scale": 1e-3,
+            "updates_per_chunk": 1, "ent_coef": 0.0}
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add train-foam to the ``jaxsimrl`` dispatcher."""
+    from foam_bridge.config import MESH_SCALE_USABLE_MIN
+
+    p = subparsers.add_parser(
+        "train-foam", help="train PPO to set simpleFoam's relaxation factors (real OpenFOAM cases)",
+        description="Train a PPO agent that sets (alpha_u, alpha_p) every 100 SIMPLE iterations of real "
+                    "simpleFoam runs of the backward-facing step (Pawar & Maulik, sec. 3.2), with the "
+                    "paper's defaults. The cases run on a pool of worker processes; the trainer steps them "
+                    "through one io_callback per step.")
+    p.add_argument("--pool", type=positive_int, default=None, help="worker processes (the paper: 4, 8, 16; "
+                   "default: min(num_envs, CPUs)); may change on --resume")
+    p.add_argument("--num-envs", type=positive_int, help="parallel cases (default: = --pool)")
+    p.add_argument("--episodes", type=positive_int, help="episodes to train for (default 2000, the paper); "
+                   "with --resume it may be raised")
+    p.add_argument("--mesh-scale", type=positive_float, help=f"mesh resolution factor (1.0 = 20,540 cells, "
+                   f"default); >= {MESH_SCALE_USABLE_MIN:g} (coarser meshes are a different control problem)")
+    p.add_argument("--step-height", type=positive_float, help="step height in m (default 0.0127 = h)")
+    p.add_argument("--max-iterations", type=positive_int, help="iteration cap per episode (default 4000)")
+    p.add_argument("--case", metavar="CASE_DIR", help="a simpleFoam case of your own instead of the "
+                   "built-in backward-facing step")
+    p.add_argument("--backend", choices=("local", "ray"), help="worker pool: local processes (default) or "
+                   "Ray actors")
+    p.add_argument("--ray-address", help="address of a running Ray cluster (with --backend ray)")
+    for name, kind, text in KNOBS:
+        p.add_argument("--" + name.replace("_", "-"), dest=name, type=kind, metavar="X", help=text)
+    p.add_argument("--config", metavar="FILE.json", help='a JSON object {"ppo": {PPOConfig fields}, "foam": '
+                   '{FoamEnvConfig fields}} applied after the defaults and before the flags')
+    p.add_argument("--seed", type=_seed, help="PRNG seed (default 0): network, actions and episode seeds")
+    p.add_argument("--out", metavar="DIR", help="run directory to create (default runs/foam-<UTC timestamp>)")
+    p.add_argument("--resume", metavar="RUN_DIR", help="continue RUN_DIR from its last checkpoint; only "
+                   "--episodes (raised), --pool, --backend and --ray-address may be given")
+    p.add_argument("--print-config", action="store_true", help="print the resolved config and exit")
+    p.set_defaults(func=run_train_foam)
+
+
+def _seed(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}") from None
+    if not 0 <= value < 2**31:
+        raise argparse.ArgumentTypeError(f"expected an integer in [0, 2**31), got {text!r}")
+    return value
+
+
+# ---- the plan: everything resolved before anything heavy starts ---------------------------------------
+@dataclass
+class FoamPlan:
+    ppo: Any  # PPOConfig
+    foam: Any  # FoamEnvConfig
+    episodes: int
+    seed: int
+    pool: int
+    backend: str
+    ray_address: str | None
+    run_path: Path
+    resume: bool
+    record: dict[str, Any] = field(default_factory=dict)
+
+
+def _fresh_plan(args: argparse.Namespace) -> FoamPlan:
+    from foam_bridge.backends import validate_pool
+    from jaxsimrl.agents.ppo.config import PPOConfig
+    from jaxsimrl.runs.run_dir import RunDir
+
+    extra = _read_config(args.config) if args.config else {}
+    num_envs = args.num_envs or args.pool or 2
+    ppo_values = {**foam_ppo_defaults(num_envs), **extra.get("ppo", {})}
+    ppo_values.update({name: getattr(args, name) for name, _, _ in KNOBS if getattr(args, name) is not None})
+    ppo_values["steps_per_update"] += -ppo_values["steps_per_update"] % (ppo_values["num_minibatches"]
+                                                                         * num_envs)
+    try:
+        ppo = PPOConfig.from_dict(ppo_values)
+        foam = _foam_config(args, extra.get("foam", {}))
+        pool = validate_pool(num_envs, args.pool)
+    except (TypeError, ValueError) as err:
+        raise UsageError(f"invalid config: {err}") from None
+    if ppo.updates_per_chunk != 1:
+        raise UsageError("invalid config: updates_per_chunk must be 1 for train-foam (a checkpoint after "
+                         "every update)")
+    if args.backend != "ray" and args.ray_address:
+        raise UsageError("--ray-address needs --backend ray")
+    out = Path(args.out) if args.out else Path("runs") / time.strftime("foam-%Y%m%d-%H%M%S", time.gmtime())
+    try:
+        RunDir.check_new(out)
+    except ValueError as err:
+        raise UsageError(str(err)) from None
+    return FoamPlan(ppo, foam, args.episodes or 2000, 0 if args.seed is None else args.seed, pool,
+                    args.backend or "local", args.ray_address, out, resume=False)
+
+
+def _foam_config(args: argparse.Namespace, extra: dict[str, Any]) -> Any:
+    """The FoamEnvConfig: the paper's built-in case, then --config's "foam" section, then flags."""
+    from foam_bridge.config import FoamEnvConfig
+    from jaxsimrl.envs.foam import foam_config_from_json, foam_config_to_json
+
+    values = {**foam_config_to_json(FoamEnvConfig(simple_variant="SIMPLEC", relax_k_omega=0.8)), **extra}
+    flags = {"mesh_scale": args.mesh_scale, "step_height": args.step_height,
+             "max_iterations": args.max_iterations, "case_dir": args.case}
+    values.update({name: value for name, value in flags.items() if value is not None})
+    if values.get("case_dir") is not None:
+        values["case_dir"] = str(Path(values["case_dir"]).resolve())
+    values["work_dir"] = None  # cases live in a temporary directory per process, never in the run dir
+    return foam_config_from_json(values)
+
+
+def _resume_plan(args: argparse.Namespace) -> FoamPlan:
+    from foam_bridge.backends import validate_pool
+    from jaxsimrl.agents.ppo.config import PPOConfig
+    from jaxsimrl.envs.foam import foam_config_from_json
+    from jaxsimrl.runs.run_dir import RunDir
+
+    fixed = ["config", "num_envs", "mesh_scale", "step_height", "max_iterations", "case", "seed", "out"]
+    changed = [name for name in fixed + [k for k, _, _ in KNOBS] if getattr(args, name) is not None]
+    if changed:
+        flag = "--" + changed[0].replace("_", "-")
+        raise UsageError(f"{flag} cannot be used with --resume: a resumed run keeps "
+                         f"its saved config (only --episodes, --pool, --backend, --ray-address)")
+    try:
+        run = RunDir.existing(args.resume)
+        record = run.read_config()
+        if record.get("env") != "foam":
+            raise ValueError(f"{run.path} is not a train-foam run (env {record.get('env')!r})")
+        ppo = PPOConfig.from_dict(record["ppo"])
+        foam = foam_config_from_json(record["foam"])
+        pool = validate_pool(ppo.num_envs, args.pool or record.get("pool"))
+    except (KeyError, TypeError, ValueError) as err:
+        raise UsageError(f"cannot resume: {err}") from None
+    if not run.checkpoint_steps():
+        raise UsageError(f"cannot resume: no checkpoint in {run.path} (it stopped before its first update)")
+    episodes = int(record.get("episodes_target", 2000))
+    if args.episodes is not None:
+        if args.episodes < episodes:
+            raise UsageError(f"--episodes {args.episodes} is below the run's {episodes}: it may only be "
+                             f"raised")
+        episodes = args.episodes
+    return FoamPlan(ppo, foam, episodes, int(record.get("seed", 0)), pool,
+                    args.backend or record.get("backend", "local"), args.ray_address, run.path, resume=True,
+                    record=record)
+
+
+def _read_config(path: str) -> dict[str, Any]:
+    from jaxsimrl.runs.run_dir import read_json
+
+    try:
+        values = read_json(path)
+    except ValueError as err:
+        raise UsageError(f"--config: {err}") from None
+    if not isinstance(values, dict) or set(values) - {"ppo", "foam"}:
+        raise UsageError(f'--config {path} must hold a JSON object with "ppo" and/or "foam" sections')
+    for name in ("ppo", "foam"):
+        if not isinstance(values.get(name, {}), dict):
+            raise UsageError(f'--config {path}: "{name}" must be a JSON object')
+    return values
+
+
+# ---- running ------------------------------------------------------------------------------------------
+def run_train_foam(args: argparse.Namespace, on_chunk: Any = None) -> int:
+    """Entry point of train-foam; ``on_chunk(updates_done)`` is a test hook."""
+    plan = _resume_plan(args) if args.resume else _fresh_plan(args)
+    if args.print_config:
+        from jaxsimrl.envs.foam import foam_config_to_json
+
+        sys.stdout.write(json.dumps({"ppo": plan.ppo.to_dict(), "foam": foam_config_to_json(plan.foam),
+                                     "episodes": plan.episodes, "pool": plan.pool}, indent=2) + "\n")
+        return 0
+    from foam_bridge.errors import CaseError, OpenFOAMNotFoundError
+    from jaxsimrl.envs.host import HostEnvError
+    from jaxsimrl.runs.run_dir import RunDir
+
+    try:
+        run = RunDir(plan.run_path) if plan.resume else RunDir.create(plan.run_path)
+    except ValueError as err:
+        raise UsageError(str(err)) from None
+    try:
+        summary = _train(plan, run, on_chunk)
+    except (CaseError, OpenFOAMNotFoundError) as err:
+        _drop_if_empty(run, plan)
+        raise UsageError(str(err)) from None
+    except KeyboardInterrupt:
+        return _interrupted(run, plan)
+    except HostEnvError as err:  # not bad input, not a solver fault: a broken host side
+        _drop_if_empty(run, plan)
+        resume = f"; resume with: jaxsimrl train-foam --resume {run.path}" if run.checkpoint_steps() else ""
+        sys.stderr.write(f"jaxsimrl train-foam: error: {err}{resume}\n")
+        return 1
+    _print_summary(summary, run)
+    return 0
+
+
+def _train(plan: FoamPlan, run: Any, on_chunk: Any) -> dict[str, Any]:
+    """Build the pool and the trainer, restore or start, train; returns the final summary."""
+    import jax
+
+    from jaxsimrl.agents.ppo import make_train
+    from jaxsimrl.envs.foam import foam_vec_env
+    from jaxsimrl.runs.checkpoint import Checkpoints
+    from jaxsimrl.runs.episodes import EpisodeLog
+    from jaxsimrl.runs.progress import FoamProgress
+    from jaxsimrl.runs.run_dir import MetricsLog
+    from jaxsimrl.runs.training import Session, train
+
+    done = run.checkpoint_steps()[-1] if plan.resume else 0
+    episodes = EpisodeLog.load(run.path / "episodes.csv", done) if plan.resume else EpisodeLog(
+        run.path / "episodes.csv")
+    cursor = {"update": done + 1}
+    # the batch is re-seeded from the trainer's key at every reset; this seed only names its streams
+    vec = foam_vec_env(plan.foam, plan.ppo.num_envs, plan.pool, seed=plan.seed,
+                       backend=plan.backend, ray_address=plan.ray_address,
+                       on_episode=lambda env_id, info: episodes.add(env_id, cursor["update"], info))
+    try:
+        trainer = make_train(plan.ppo, vec=vec, devices=jax.devices()[:1])
+        with Checkpoints(run.checkpoints) as checkpoints:
+            key = jax.random.PRNGKey(plan.seed)
+            if plan.resume:
+                state = _restored(trainer, checkpoints, key, done)
+                log = MetricsLog.load(run, done)
+                log.write()
+            else:
+                state, log = trainer.init(key), MetricsLog(run)
+            vec.raise_if_failed()
+            record = _config_record(plan)
+            run.write_config(record)
+            session = Session(run, _HostTrainer(trainer, vec, episodes, cursor), log, checkpoints,
+                              meta={"config": record}, summary_extra={"run_dir": str(run.path)},
+                              before_checkpoint=lambda _: episodes.flush(),
+                              summary_hook=lambda s: foam_summary(s, episodes, plan))
+            with FoamProgress(plan.episodes, episodes, plan.pool, log) as progress:
+                train(session, state, done, progress, on_chunk,
+                      until=lambda: len(episodes.rows) >= plan.episodes)
+            return session.write_summary()
+    finally:
+        vec.batch.close()
+
+
+def _restored(trainer: Any, checkpoints: Any, key: Any, done: int) -> Any:
+    import jax
+
+    try:
+        state, _ = checkpoints.restore(jax.eval_shape(trainer.init, key), done)
+    except ValueError as err:
+        raise UsageError(f"cannot resume: {err}") from None
+    return trainer.restart_episodes(state, jax.random.fold_in(key, done))
+
+
+class _HostTrainer:
+    """The trainer as the training loop sees it: a chunk whose host side failed raises, unsaved."""
+
+    def __init__(self, trainer: Any, vec: Any, episodes: Any, cursor: dict[str, int]) -> None:
+        self.trainer, self.vec, self.episodes, self.cursor = trainer, vec, episodes, cursor
+        self.num_updates = trainer.num_updates
+
+    def run_chunk(self, state: Any) -> tuple[Any, dict[str, Any]]:
+        import jax
+
+        state, metrics = self.trainer.run_chunk(state)
+        metrics = jax.device_get(metrics)
+        if self.vec.error is not None:
+            self.episodes.discard_pending()
+        self.vec.raise_if_failed()
+        self.cursor["update"] += 1
+        return state, metrics
+
+
+def foam_summary(summary: dict[str, Any], episodes: Any, plan: FoamPlan) -> dict[str, Any]:
+    """summary.json entries of a foam run (from episodes.csv and the metrics rows' training time)."""
+    wall = float(summary.get("wall_time_s", 0.0))
+    count = len(episodes.rows)
+    return {"episodes": count, "episodes_target": plan.episodes, "complete": count >= plan.episodes,
+            "episodes_per_hour": count / wall * 3600 if wall > 0 else math.nan,
+            "final_mean_iterations": episodes.moving_iterations(), "failures": {
+                k: v for k, v in episodes.outcomes().items() if k in ("crashed", "diverged", "hung")},
+            "outcomes": episodes.outcomes(), "pool": plan.pool,
+            "pool_utilisation": episodes.busy_s() / (plan.pool * wall) if wall > 0 else math.nan}
+
+
+def _config_record(plan: FoamPlan) -> dict[str, Any]:
+    from importlib.metadata import version
+
+    import jax
+
+    from jaxsimrl.envs.foam import foam_config_to_json
+
+    now = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
+    base = plan.record if plan.resume else {"env": "foam", "seed": plan.seed, "created_utc": now}
+    record = {**base, "ppo": plan.ppo.to_dict(), "foam": foam_config_to_json(plan.foam),
+              "episodes_target": plan.episodes, "pool": plan.pool, "backend": plan.backend,
+              "jax_version": jax.__version__, "jaxsimrl_version": version("jaxsimrl")}
+    if plan.resume:
+        record["resumed_utc"] = [*base.get("resumed_utc", []), now]
+    return record
+
+
+def _drop_if_empty(run: Any, plan: FoamPlan) -> None:
+    if not plan.resume and not run.checkpoint_steps():
+        shutil.rmtree(run.path, ignore_errors=True)
+
+
+def _interrupted(run: Any, plan: FoamPlan) -> int:
+    steps = run.checkpoint_steps()
+    if steps:
+        sys.stderr.write(f"jaxsimrl train-foam: interrupted; saved up to update {steps[-1]}. Resume with: "
+                         f"jaxsimrl train-foam --resume {run.path}\n")
+    else:
+        _drop_if_empty(run, plan)
+        sys.stderr.write("jaxsimrl train-foam: interrupted before the first update; nothing to resume\n")
+    return INTERRUPTED
+
+
+def _print_summary(summary: dict[str, Any], run: Any) -> None:
+    failures = ", ".join(f"{k} {v}" for k, v in summary["failures"].items()) or "none"
+    sys.stdout.write(
+        f"done: {summary['episodes']} episodes in {summary['updates']} updates, "
+        f"{summary['wall_time_s']:.0f} s "
+        f"({summary['episodes_per_hour']:.0f} episodes/hour, pool utilisation "
+        f"{summary['pool_utilisation']:.0%})\n"
+        f"  mean iterations over the last 100 episodes: {summary['final_mean_iterations']:.1f}; "
+        f"failures: {failures}\n"
+        f"  run directory: {run.path} (config.json, episodes.csv, metrics.jsonl/.csv, summary.json, "
+        f"checkpoints/)\n"
+        f"  evaluate with: jaxsimrl eval-foam {run.path}\n")
