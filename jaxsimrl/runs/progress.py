@@ -125,3 +125,4 @@ class FoamProgress:
         else:
             self.console.print(f"update {update}  episodes {count}/{self.target}  {self.stats()}",
                                soft_wrap=True)
+            self.stream.flush()  # a log file being watched sees every update as it ends
