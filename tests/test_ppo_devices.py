@@ -34,12 +34,19 @@ SCRIPT = textwrap.dedent("""
                   "norm_mean": np.asarray(state.normalizer.mean).tolist(),
                   "obs": np.asarray(state.obs).tolist(),
                   "sharding": str(state.obs.sharding)}
+    from jaxsimrl.envs.host import HostVecEnv
+    from test_vec_env import HOST, CountdownBatch
+    try:
+        make_train(HOST, vec=HostVecEnv(CountdownBatch(3)))
+    except ValueError as err:
+        out["host_error"] = str(err)
     print("RESULT" + json.dumps(out))
 """)
 
 
 def test_two_devices_learn_the_same_as_one():
     env = {**os.environ, "XLA_FLAGS": "--xla_force_host_platform_device_count=2", "JAX_PLATFORMS": "cpu"}
+    env["PYTHONPATH"] = os.pathsep.join([os.path.dirname(__file__), env.get("PYTHONPATH", "")])
     proc = subprocess.run([sys.executable, "-c", SCRIPT], env=env, capture_output=True, text=True,
                           timeout=600)
     assert proc.returncode == 0, proc.stderr[-3000:]
@@ -52,6 +59,8 @@ def test_two_devices_learn_the_same_as_one():
     assert _close(one["params"], two["params"], 1e-4)
     assert _close(one["norm_mean"], two["norm_mean"], 1e-5)
     assert _close(one["obs"], two["obs"], 1e-3)
+    # host envs: one device, and a clear error on more
+    assert out["host_error"].startswith("a host env batch is stepped whole, from one device; got 2")
 
 
 def _close(a, b, tol):

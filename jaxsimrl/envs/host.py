@@ -54,7 +54,11 @@ def seed_of(keys: np.ndarray) -> int:
 
 
 class HostVecEnv:
-    """A host env batch behind one io_callback per step (see the module docstring)."""
+    """A host env batch behind one io_callback per step (see the module docstring). The trainer runs it
+    on a mesh of one device: sharded envs would make one callback per device, each with part of a batch
+    that the host can only step whole."""
+
+    single_device = True
 
     def __init__(self, batch: Any, on_episode: EpisodeHook | None = None) -> None:
         self.batch = batch

@@ -54,6 +54,9 @@ class PPOTrainer:
         if vec.num_envs != config.num_envs:
             raise ValueError(f"the env batch has {vec.num_envs} envs but num_envs is {config.num_envs}")
         self.devices = list(jax.devices() if devices is None else devices)
+        if getattr(vec, "single_device", False) and len(self.devices) > 1:
+            raise ValueError(f"a host env batch is stepped whole, from one device; got {len(self.devices)} "
+                             f"devices (pass devices=jax.devices()[:1])")
         if config.num_envs % len(self.devices):
             raise ValueError(f"num_envs ({config.num_envs}) must be divisible by the number of devices "
                              f"({len(self.devices)})")
