@@ -42,7 +42,7 @@ from fig_cfd_validation import (
 )
 
 from foam_bridge.config import TEST_CONVERGENCE, TRAIN_CONVERGENCE, U_REF, FoamEnvConfig
-from foam_bridge.grid import GridCell, best_cell, grid_config, plot_grid, run_grid
+from foam_bridge.grid import GridCell, best_cell, check_factors, grid_config, plot_grid, run_grid
 from foam_bridge.logparse import field_residual
 from foam_bridge.openfoam import find_openfoam
 from jaxsimrl.runs.atomic import atomic_write_json
@@ -167,6 +167,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Grid, reruns of the good and the bad pair, the two figures and grid_residuals.json."""
     args = parse_args(argv)
     try:
+        check_factors(args.alpha_u, "--alpha-u")
+        check_factors(args.alpha_p, "--alpha-p")
         cfg = grid_config(grid_cfg(args.mesh_scale, args.criterion, args.max_iterations), args.alpha_u,
                           args.alpha_p)
     except ValueError as error:
