@@ -25,7 +25,7 @@ from jaxsimrl.evaluation.foam_cost import solver_cost
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 #: The run's case: SIMPLEC with k/omega 0.8 as the paper's code; a low cap keeps random runs short.
-TRAIN_FOAM = FoamEnvConfig(mesh_scale=0.4, simple_variant="SIMPLEC", relax_k_omega=0.8, max_iterations=1000)
+TRAIN_FOAM = FoamEnvConfig(mesh_scale=0.4, simple_variant="SIMPLEC", relax_k_omega=0.8, max_iterations=500)
 ACTOR_BIAS = 3.0  # tanh(3) = 0.995: the mean action is 0.2 + 0.75 * 0.9975 = 0.948 on both factors
 
 
@@ -139,10 +139,10 @@ def test_controller_actions_depend_only_on_seed_uid_and_step(tmp_path, network):
     run = load_foam_run(save_run(tmp_path / "run", network=network))
     assert run.update == 3 and run.checkpoint_step == 3 and run.config.network == network
     obs_of = {5: [1.3], 7: [0.3]}
-    actors = {seed: PolicyActor(run, 3, seed) for seed in (0, 1)}  # one compilation per actor and mode
+    actor = PolicyActor(run, 3)  # one compilation per mode serves every controller and seed
 
     def learned(deterministic, uids, seed=0):
-        controller = LearnedController("c", actors[seed], deterministic)
+        controller = LearnedController("c", actor, deterministic, seed)
         obs = np.array([obs_of[uid] for uid in uids], np.float32)
         for uid in uids:
             controller.begin(uid)
@@ -215,21 +215,27 @@ def test_bad_input_is_one_line_exit_2(capsys, tmp_path, saved_run, case):
     assert not (tmp_path / "out").exists()
 
 
+def test_best_constant_of_a_grid_csv_is_its_fastest_converged_cell(tmp_path):
+    from jaxsimrl.evaluation.foam_eval import baseline_from_csv
+
+    cells = [GridCell(0.95, 0.95, 260, "converged", 1.0), GridCell(0.9, 0.95, 250, "converged", 1.0),
+             GridCell(0.5, 0.5, 90, "crashed", 1.0), GridCell(0.7, 0.7, 1000, "truncated", 1.0)]
+    baseline = baseline_from_csv(_grid_csv(tmp_path / "grid.csv", cells))
+    assert baseline.factors == (0.9, 0.95) and baseline.grid_iterations == 250
+    assert str(tmp_path / "grid.csv") in baseline.source
+
+
 # ----- one real evaluation -----------------------------------------------------------------------------
 VELOCITY = 50.0
-GRID_BEST = (0.9, 0.95)
+GRID = ("--grid-alpha-u", "0.95", "--grid-alpha-p", "0.9", "0.95")
 
 
 @pytest.fixture(scope="module")
 def evaluation(saved_run, tmp_path_factory):
-    folder = tmp_path_factory.mktemp("evalout")
-    cells = [GridCell(0.95, 0.95, 260, "converged", 1.0), GridCell(*GRID_BEST, 250, "converged", 1.0),
-             GridCell(0.5, 0.5, 90, "crashed", 1.0)]
-    grid = _grid_csv(folder / "grid.csv", cells)
-    out = folder / "out"
+    """eval-foam without --baseline-grid: it runs its own 1 x 2 grid for the best constant first."""
+    out = tmp_path_factory.mktemp("evalout") / "out"
     code = main(["eval-foam", str(saved_run), "--velocities", str(VELOCITY), "--step-height", "0.0127",
-                 "--mesh-scale", "0.4", "--samples", "2", "--pool", "2", "--baseline-grid", str(grid),
-                 "--out", str(out)])
+                 "--mesh-scale", "0.4", "--samples", "2", "--pool", "2", *GRID, "--out", str(out)])
     assert code == 0
     return out, json.loads((out / "eval.json").read_text())
 
@@ -237,9 +243,9 @@ def evaluation(saved_run, tmp_path_factory):
 @needs_openfoam
 def test_eval_writes_its_files_and_one_run_per_deterministic_cell(evaluation):
     out, report = evaluation
-    assert sorted(p.name for p in out.iterdir()) == ["box_V50.png", "eval.csv", "eval.json", "factors.png",
-                                                      "mean_V50.png"]
-    for name in ("box_V50.png", "mean_V50.png", "factors.png"):
+    assert sorted(p.name for p in out.iterdir()) == ["baseline_grid.csv", "baseline_grid.png", "box_V50.png",
+                                                      "eval.csv", "eval.json", "factors.png", "mean_V50.png"]
+    for name in ("box_V50.png", "mean_V50.png", "factors.png", "baseline_grid.png"):
         assert (out / name).read_bytes()[:8] == PNG_MAGIC
     assert report["geometries"] == {"h": 0.0127} and report["criterion"] == dict(TEST_CONVERGENCE)
     assert report["case"]["simple_variant"] == "SIMPLEC" and report["case"]["relax_k_omega"] == 0.8
@@ -250,7 +256,9 @@ def test_eval_writes_its_files_and_one_run_per_deterministic_cell(evaluation):
     for controller, runs in expected_runs.items():
         cell = results[controller]["h"]["50"]
         assert len(cell["runs"]) == runs and sum(cell["outcomes"].values()) == runs
-        assert cell["iterations"]["n"] == cell["converged"]
+        assert cell["iterations"]["n"] == cell["converged"] and cell["penalised_iterations"]["n"] == runs
+        if cell["converged"]:  # runs that did not converge count at the cap (500) in the penalised mean
+            assert cell["penalised_iterations"]["mean"] >= cell["iterations"]["mean"]
         for run in cell["runs"]:
             assert run["outcome"] in ("converged", "truncated", "crashed", "diverged", "hung")
             assert run["steps"] == len(run["actions"]) >= 1
@@ -271,22 +279,29 @@ def test_eval_writes_its_files_and_one_run_per_deterministic_cell(evaluation):
 
 
 @needs_openfoam
-def test_best_constant_comes_from_the_csv_and_matches_the_env_run_directly(evaluation, tmp_path):
+def test_best_constant_is_the_grids_best_and_matches_the_env_run_directly(evaluation, tmp_path):
     from foam_bridge.env import FoamCaseEnv
+    from foam_bridge.grid import best_cell, read_grid_csv
     from jaxsimrl.evaluation.foam_cost import read_solver_cost
 
-    _, report = evaluation
-    assert (report["baseline"]["alpha_u"], report["baseline"]["alpha_p"]) == GRID_BEST
-    assert report["baseline"]["grid_iterations"] == 250 and "grid.csv" in report["baseline"]["source"]
+    out, report = evaluation
+    cells = read_grid_csv(out / "baseline_grid.csv")
+    assert sorted((c.alpha_u, c.alpha_p) for c in cells) == [(0.95, 0.9), (0.95, 0.95)]
+    best = best_cell(cells)
+    factors = (report["baseline"]["alpha_u"], report["baseline"]["alpha_p"])
+    assert factors == (best.alpha_u, best.alpha_p)
+    assert report["baseline"]["grid_iterations"] == best.iterations
+    assert "grid run by eval-foam at V = 50 m/s on h" in report["baseline"]["source"]
     run = report["results"]["best_constant"]["h"]["50"]["runs"][0]
-    assert all(action == list(GRID_BEST) for action in run["actions"])
+    assert all(action == list(factors) for action in run["actions"])
+    assert run["iterations"] == best.iterations  # the grid ran the same case under the same criterion
     cfg = dataclasses.replace(TRAIN_FOAM, convergence=dict(TEST_CONVERGENCE), keep_cases=True,
                               work_dir=tmp_path)
     with FoamCaseEnv(cfg) as env:
         env.reset(seed=0, options={"inlet_velocity": VELOCITY})
         done = False
         while not done:
-            _, _, terminated, truncated, info = env.step(GRID_BEST)
+            _, _, terminated, truncated, info = env.step(factors)
             done = terminated or truncated
         cost = read_solver_cost(env.case_dir)
     assert info["outcome"] == run["outcome"] == "converged"

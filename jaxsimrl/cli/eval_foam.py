@@ -133,25 +133,31 @@ class EvalProgress:
         self._progress.update(self._task, completed=done, description=f"last: {text}")
 
 
+#: Short controller names for the terminal table.
+SHORT_NAMES = {"learned_deterministic": "learned mean", "learned_stochastic": "learned sampled",
+               "best_constant": "best constant", "tutorial_defaults": "defaults", "random": "random"}
+
+
 def results_table(report: dict[str, Any]) -> Any:
-    """A rich table: per geometry, velocity and controller, the three costs (mean +- std, converged)."""
+    """A rich table: per geometry, velocity and controller, the costs (mean +- std of converged runs)."""
+    from rich import box
     from rich.table import Table
 
-    table = Table(title="eval-foam (mean +- std over converged runs)")
-    for column in ("geometry", "V (m/s)", "controller", "converged", "SIMPLE iterations", "wall time (s)",
-                   "linear-solver its"):
-        table.add_column(column, justify="left" if column in ("geometry", "controller") else "right")
+    table = Table(title="eval-foam: mean +- std over the converged runs", box=box.SIMPLE_HEAD, padding=(0, 1))
+    for column in ("geom", "V", "controller", "conv.", "SIMPLE its", "wall s", "CPU s", "linear its"):
+        table.add_column(column, justify="left" if column in ("geom", "controller") else "right")
     for geometry in report["geometries"]:
         for velocity in report["velocities"]:
             for controller, cells in report["results"].items():
                 cell = cells[geometry][f"{velocity:g}"]
                 converged = f"{cell['converged']}/{len(cell['runs'])}"
-                table.add_row(geometry, f"{velocity:g}", controller, converged, _pm(cell["iterations"], 0),
-                              _pm(cell["wall_time_s"], 1), _pm(cell["linear_iterations"], 0))
+                table.add_row(geometry, f"{velocity:g}", SHORT_NAMES.get(controller, controller), converged,
+                              _pm(cell["iterations"], 0), _pm(cell["wall_time_s"], 1),
+                              _pm(cell["cpu_time_s"], 1), _pm(cell["linear_iterations"], 0))
     return table
 
 
 def _pm(summary: dict[str, Any], digits: int) -> str:
     if summary["mean"] is None:
         return "-"
-    return f"{summary['mean']:.{digits}f} +- {summary['std']:.{digits}f}"
+    return f"{summary['mean']:.{digits}f}±{summary['std']:.{digits}f}"

@@ -63,12 +63,14 @@ class RandomController:
 
 
 class LearnedController:
-    """The trained policy: its mean action (``deterministic``) or a sample of it at every step."""
+    """The trained policy: its mean action (``deterministic``) or a sample of it at every step, drawn
+    with the keys of ``seed`` (see PolicyActor)."""
 
-    def __init__(self, name: str, actor: PolicyActor, deterministic: bool) -> None:
+    def __init__(self, name: str, actor: PolicyActor, deterministic: bool, seed: int = 0) -> None:
         self.name = name
         self.actor = actor
         self.deterministic = deterministic
+        self.seed = seed
         self.repeats = not deterministic
         self._carries: dict[int, Any] = {}
 
@@ -77,7 +79,7 @@ class LearnedController:
 
     def act(self, uids: Sequence[int], obs: np.ndarray, steps: Sequence[int]) -> np.ndarray:
         actions, carries = self.actor.act(obs, [self._carries[uid] for uid in uids], list(uids), list(steps),
-                                          self.deterministic)
+                                          self.deterministic, self.seed)
         self._carries.update(zip(uids, carries, strict=True))
         return actions
 

@@ -51,6 +51,9 @@ DEFAULT_GRID = (0.8, 0.9, 0.95)
 TUTORIAL_DEFAULTS = (0.9, 0.8)
 #: Controller keys, in the order of tables and figures.
 CONTROLLERS = ("learned_deterministic", "learned_stochastic", "best_constant", "tutorial_defaults", "random")
+#: FoamEnvConfig fields left out of the report's "case": they vary per cell, or the report gives them
+#: apart ("action_box": the training box; the env's own box is widened to hold the constants).
+CASE_OMITTED = ("work_dir", "keep_cases", "step_height", "inlet_velocity", "action_low", "action_high")
 CSV_COLUMNS = ("controller", "geometry", "step_height", "velocity", "sample", "outcome", "cause",
                "iterations", "wall_time_s", "cpu_time_s", "linear_iterations", "p_linear_iterations",
                "steps", "actions")
@@ -202,10 +205,10 @@ def make_controllers(run: Any, baseline: Baseline, pool: int, seed: int) -> dict
     from jaxsimrl.evaluation.foam_controllers import ConstantController, LearnedController, RandomController
     from jaxsimrl.evaluation.foam_policy import PolicyActor
 
-    actor = PolicyActor(run, pool, seed)
+    actor = PolicyActor(run, pool)
     return {
-        "learned_deterministic": LearnedController("learned_deterministic", actor, deterministic=True),
-        "learned_stochastic": LearnedController("learned_stochastic", actor, deterministic=False),
+        "learned_deterministic": LearnedController("learned_deterministic", actor, True, seed),
+        "learned_stochastic": LearnedController("learned_stochastic", actor, False, seed),
         "best_constant": ConstantController("best_constant", baseline.factors),
         "tutorial_defaults": ConstantController("tutorial_defaults", TUTORIAL_DEFAULTS),
         "random": RandomController("random", run.foam.action_low, run.foam.action_high, seed),
@@ -324,7 +327,7 @@ def build_report(spec: EvalSpec, run: Any, baseline: Baseline, shapes: dict[str,
         "velocities": [float(v) for v in spec.velocities], "geometries": shapes,
         "mesh_scale": spec.mesh_scale, "criterion": dict(TEST_CONVERGENCE),
         "case": {k: v for k, v in foam_config_to_json(case).items()
-                 if k not in ("work_dir", "keep_cases", "step_height", "inlet_velocity")},
+                 if k not in CASE_OMITTED},
         "controllers": {
             "learned_deterministic": "the policy's mean action, one run per cell",
             "learned_stochastic": f"actions sampled from the policy, {spec.samples} runs per cell",
@@ -333,6 +336,7 @@ def build_report(spec: EvalSpec, run: Any, baseline: Baseline, shapes: dict[str,
                                  f"cell",
             "random": f"uniform in the action box at every step, {spec.samples} runs per cell",
         },
+        "action_box": {"low": list(run.foam.action_low), "high": list(run.foam.action_high)},
         "baseline": {"alpha_u": baseline.alpha_u, "alpha_p": baseline.alpha_p, "source": baseline.source,
                      "grid_iterations": baseline.grid_iterations},
         "results": table,

@@ -3,8 +3,9 @@
 - ``box_V<v>.png`` per velocity: the paper's box plot, SIMPLE iterations to convergence per controller,
   one panel per geometry; every run is also drawn as a dot, and runs that did not converge are counted
   above their controller.
-- ``mean_V<v>.png`` per velocity: mean +- std per controller of the three costs, SIMPLE iterations,
-  wall time and linear-solver iterations (rows), one column per geometry.
+- ``mean_V<v>.png`` per velocity: mean +- std per controller of the costs of the converged runs
+  (rows: SIMPLE iterations, wall time, solver CPU time, linear-solver iterations), one column per
+  geometry.
 - ``factors.png``: the learned policy's relaxation factors alpha_u and alpha_p against the SIMPLE
   iteration (each action holds for ``interval`` iterations), per geometry and velocity: the
   deterministic run bold, the stochastic samples thin; the best constant dashed.
@@ -32,7 +33,7 @@ LEARNED_STYLE = (("learned_stochastic", 0.8, 0.35), ("learned_deterministic", 2.
 PALETTE = ("tab:blue", "tab:orange", "tab:purple", "tab:brown", "tab:pink", "tab:gray")
 #: (key in a cell summary, axis label) of the mean +- std figure's rows.
 COSTS = (("iterations", "SIMPLE iterations"), ("wall_time_s", "wall time (s)"),
-         ("linear_iterations", "linear-solver iterations"))
+         ("cpu_time_s", "solver CPU time (s)"), ("linear_iterations", "linear-solver iterations"))
 
 
 def plot_all(report: dict[str, Any], out: Path) -> list[Path]:
@@ -149,12 +150,22 @@ def plot_factors(report: dict[str, Any], path: Path) -> Path:
             ax.axhline(baseline[key], color="tab:green", ls="--", lw=1,
                        label="best constant" if row == 0 else None)
             ax.set_ylabel(symbol)
+            ax.set_ylim(*_factor_limits(report, key))
             ax.set_xlabel("SIMPLE iteration")
             ax.grid(alpha=0.3)
         axes[0, column].set_title(f"learned factors, {geometry} (bold: mean action; thin: samples)",
                                   fontsize=10)
         axes[0, column].legend(fontsize=7, loc="lower right")
     return _save(fig, path)
+
+
+def _factor_limits(report: dict[str, Any], key: str) -> tuple[float, float]:
+    """The training action box of one factor (and the best constant), with a margin."""
+    index = ("alpha_u", "alpha_p").index(key)
+    box = report["action_box"]
+    low = min(box["low"][index], report["baseline"][key])
+    high = max(box["high"][index], report["baseline"][key])
+    return low - 0.03, high + 0.03
 
 
 def _draw_factors(axes: np.ndarray, run: dict[str, Any], interval: int, style: dict[str, Any],

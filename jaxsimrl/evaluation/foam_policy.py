@@ -91,12 +91,11 @@ def _policy_params(state: Any, foam: FoamEnvConfig, where: str) -> PolicyParams:
 class PolicyActor:
     """Acts for up to ``batch_size`` episodes per call (see the module docstring)."""
 
-    def __init__(self, run: FoamRun, batch_size: int, seed: int) -> None:
+    def __init__(self, run: FoamRun, batch_size: int) -> None:
         self.policy = Policy(run.config, _ActionBox(run.foam))
         self.params = run.params
         self.batch_size = batch_size
         self.obs_size = run.foam.observation_size
-        self._base_key = jax.random.PRNGKey(seed)
         self._act = {flag: jax.jit(self._rows(flag)) for flag in (True, False)}
 
     def initial_carry(self) -> Any:
@@ -104,7 +103,7 @@ class PolicyActor:
         return jax.tree.map(lambda c: np.asarray(c[0]), self.policy.initial_carry(1))
 
     def act(self, obs: np.ndarray, carries: list[Any], uids: list[int], steps: list[int],
-            deterministic: bool) -> tuple[np.ndarray, list[Any]]:
+            deterministic: bool, seed: int = 0) -> tuple[np.ndarray, list[Any]]:
         """Actions (n, 2) for n <= batch_size episodes and their next carries; ``steps[i] == 0`` marks an
         episode's first observation (its carry is reset)."""
         n = len(uids)
@@ -116,18 +115,20 @@ class PolicyActor:
         carry = jax.tree.map(lambda *rows: np.stack(rows), *carries, *[self.initial_carry()] * pad)
         index = np.asarray(list(uids) + [0] * pad, np.int32)
         step = np.asarray(list(steps) + [0] * pad, np.int32)
-        actions, carry = self._act[deterministic](self.params, obs, carry, index, step)
+        key = jax.random.PRNGKey(seed)  # an argument, not a constant: one compilation serves every seed
+        actions, carry = self._act[deterministic](self.params, key, obs, carry, index, step)
         actions = np.asarray(actions, np.float64)[:n]
         carry = jax.device_get(carry)
         return actions, [jax.tree.map(lambda c, i=i: c[i], carry) for i in range(n)]
 
     def _rows(self, deterministic: bool) -> Any:
-        policy, base = self.policy, self._base_key
+        policy = self.policy
 
-        def one(params: PolicyParams, obs: jax.Array, carry: Any, uid: jax.Array, step: jax.Array) -> Any:
+        def one(params: PolicyParams, base: jax.Array, obs: jax.Array, carry: Any, uid: jax.Array,
+                step: jax.Array) -> Any:
             key = jax.random.fold_in(jax.random.fold_in(base, uid), step)
             batch_carry = jax.tree.map(lambda c: c[None], carry)
             action, carry = policy.act(params, obs[None], batch_carry, (step == 0)[None], key, deterministic)
             return action[0], jax.tree.map(lambda c: c[0], carry)
 
-        return jax.vmap(one, in_axes=(None, 0, 0, 0, 0))
+        return jax.vmap(one, in_axes=(None, None, 0, 0, 0, 0))
