@@ -139,10 +139,10 @@ def test_controller_actions_depend_only_on_seed_uid_and_step(tmp_path, network):
     run = load_foam_run(save_run(tmp_path / "run", network=network))
     assert run.update == 3 and run.checkpoint_step == 3 and run.config.network == network
     obs_of = {5: [1.3], 7: [0.3]}
-    actor = PolicyActor(run, 3)  # one compilation per mode serves every controller and seed
+    actors = {3: PolicyActor(run, 3)}  # one compilation per mode serves every controller and seed
 
-    def learned(deterministic, uids, seed=0):
-        controller = LearnedController("c", actor, deterministic, seed)
+    def learned(deterministic, uids, seed=0, batch=3):
+        controller = LearnedController("c", actors[batch], deterministic, seed)
         obs = np.array([obs_of[uid] for uid in uids], np.float32)
         for uid in uids:
             controller.begin(uid)
@@ -152,6 +152,8 @@ def test_controller_actions_depend_only_on_seed_uid_and_step(tmp_path, network):
     pair, alone = learned(False, [5, 7]), learned(False, [7])
     np.testing.assert_array_equal(pair[0][1], alone[0][0])  # uid 7, whoever shares the batch
     np.testing.assert_array_equal(pair[1][1], alone[1][0])
+    actors[1] = PolicyActor(run, 1)  # a pool of one pads to another batch size
+    np.testing.assert_array_equal(learned(False, [7], batch=1)[0], alone[0])
     assert not np.allclose(pair[0][0], pair[0][1]) and not np.allclose(pair[0][1], pair[1][1])
     assert not np.allclose(learned(False, [7], seed=1)[0], alone[0])
     mean = learned(True, [5, 7])[0]
