@@ -169,6 +169,73 @@ def test_controller_actions_depend_only_on_seed_uid_and_step(tmp_path, network):
     np.testing.assert_array_equal(both[1], again.act([7], np.zeros((1, 1)), [0])[0])
 
 
+class ScriptedBackend:
+    """A stand-in for foam_bridge's pool: episode ``uid`` converges after ``lengths[uid]`` steps of 100
+    iterations; ``die`` = {uid: step} kills the worker on that step; ``reject`` uids fail their reset."""
+
+    def __init__(self, lengths, die=(), reject=()):
+        self.lengths, self.die, self.reject = lengths, dict(die), set(reject)
+        self.slot_uid, self.steps, self.stepped = {}, {}, []
+
+    def run(self, requests):
+        from foam_bridge.backends import Reply
+
+        replies = []
+        for request in requests:
+            slot = request.env_id
+            if request.method == "reset":
+                uid = request.args["seed"]
+                if uid in self.reject:
+                    replies.append(Reply(slot, False, error="CaseError: broken", kind="CaseError"))
+                    continue
+                self.slot_uid[slot], self.steps[uid] = uid, 0
+                replies.append(Reply(slot, True, (np.ones(1, np.float32), {})))
+                continue
+            uid = self.slot_uid[slot]
+            self.steps[uid] += 1
+            self.stepped.append(uid)
+            if self.die.get(uid) == self.steps[uid]:
+                replies.append(Reply(slot, False, error="worker died", worker_died=True))
+                continue
+            done = self.steps[uid] == self.lengths[uid]
+            info = {"iterations": 100 * self.steps[uid], "outcome": "converged" if done else "running"}
+            if done:
+                info["episode"] = {"wall_time_s": 2.0, "solver_idle_s": 0.5, "iterations": info["iterations"],
+                                   "actions": [[0.9, 0.8]] * self.steps[uid]}
+            replies.append(Reply(slot, True, (np.ones(1, np.float32), -100.0, done, False, info)))
+        return replies
+
+    def close(self):
+        pass
+
+
+def _scripted(monkeypatch, backend, lengths, pool):
+    from jaxsimrl.evaluation import foam_runner
+    from jaxsimrl.evaluation.foam_controllers import ConstantController
+
+    monkeypatch.setattr(foam_runner, "make_backend", lambda *args: backend)
+    jobs = [foam_runner.Job(uid, "c", "h", 50.0, 0) for uid in range(len(lengths))]
+    return foam_runner.run_episodes(FoamEnvConfig(), jobs, {"c": ConstantController("c", (0.9, 0.8))}, pool)
+
+
+@pytest.mark.parametrize("lengths", [[1, 1, 1], [3, 1, 2, 1, 4], [2, 2, 2, 2]])
+def test_runner_keeps_slots_busy_and_steps_each_episode_only_to_its_end(monkeypatch, lengths):
+    backend = ScriptedBackend(dict(enumerate(lengths)), die={1: 1})
+    results = _scripted(monkeypatch, backend, lengths, pool=2)
+    assert [r.job.uid for r in results] == list(range(len(lengths)))
+    assert backend.steps == {uid: 1 if uid == 1 else n for uid, n in enumerate(lengths)}  # no extra step
+    assert results[1].outcome == "crashed" and results[1].cause == "worker died"
+    for result in results[:1] + results[2:]:
+        assert result.outcome == "converged" and result.iterations == 100 * lengths[result.job.uid]
+        assert result.wall_time_s == 1.5 and len(result.actions) == lengths[result.job.uid]
+        assert result.cost is None  # no log.simpleFoam behind a scripted backend
+
+
+def test_runner_stops_on_a_case_the_env_rejects(monkeypatch):
+    with pytest.raises(ValueError, match="CaseError: broken"):
+        _scripted(monkeypatch, ScriptedBackend({0: 1, 1: 1}, reject={1}), [1, 1], pool=2)
+
+
 # ----- CLI errors --------------------------------------------------------------------------------------
 def _grid_csv(path, cells):
     write_grid_csv(cells, path)

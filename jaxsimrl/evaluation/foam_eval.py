@@ -169,12 +169,16 @@ def baseline_from_csv(path: str | Path) -> Baseline:
                     best.iterations)
 
 
-def baseline_from_grid(spec: EvalSpec, cfg: FoamEnvConfig, velocity: float, geometry: str) -> Baseline:
+def baseline_from_grid(spec: EvalSpec, cfg: FoamEnvConfig, velocity: float, geometry: str,
+                       say: Callable[[str], None]) -> Baseline:
     """Run the small constant grid at ``velocity`` on ``geometry``; writes it to the output directory."""
     from foam_bridge.grid import best_cell, plot_grid, run_grid, write_grid_csv
 
+    def on_cell(cell: Any) -> None:
+        say(f"grid ({cell.alpha_u:g}, {cell.alpha_p:g}): {cell.outcome} @ {cell.iterations} it")
+
     cells = run_grid(dataclasses.replace(cfg, inlet_velocity=velocity), spec.grid_alpha_u, spec.grid_alpha_p,
-                     pool=spec.pool)
+                     pool=spec.pool, on_cell=on_cell)
     out = spec.output_dir
     write_grid_csv(cells, out / GRID_CSV)
     title = f"best constant search: V = {velocity:g} m/s, {geometry}, test criterion"
@@ -235,7 +239,7 @@ def evaluate_foam(spec: EvalSpec, on_result: Callable[[EpisodeResult, int, int],
         say(f"no --baseline-grid: searching the best constant on a grid at V = {spec.velocities[0]:g} m/s, "
             f"{first}")
         grid_cfg = eval_config(run.foam, shapes[first], spec.mesh_scale, [TUTORIAL_DEFAULTS])
-        baseline = baseline_from_grid(spec, grid_cfg, spec.velocities[0], first)
+        baseline = baseline_from_grid(spec, grid_cfg, spec.velocities[0], first, say)
     say(f"best constant ({baseline.alpha_u:g}, {baseline.alpha_p:g}) from {baseline.source}")
     controllers = make_controllers(run, baseline, spec.pool, spec.seed)
     jobs = plan(list(shapes), spec.velocities, {k: c.repeats for k, c in controllers.items()}, spec.samples)

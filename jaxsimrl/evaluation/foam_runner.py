@@ -107,7 +107,7 @@ class _Driver:
     def run(self, jobs: Sequence[Job], slots: int) -> None:
         queue = deque(jobs)
         while queue or self.active:
-            starting = [s for s in range(slots) if s not in self.active and queue]
+            starting = [s for s in range(slots) if s not in self.active][:len(queue)]
             for slot in starting:
                 self.active[slot] = _Running(queue.popleft())
             if starting:
