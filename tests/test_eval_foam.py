@@ -236,6 +236,18 @@ def test_runner_stops_on_a_case_the_env_rejects(monkeypatch):
         _scripted(monkeypatch, ScriptedBackend({0: 1, 1: 1}, reject={1}), [1, 1], pool=2)
 
 
+def test_an_episode_keeps_its_uid_whatever_else_the_command_evaluates():
+    from jaxsimrl.evaluation.foam_eval import CONTROLLERS, plan
+
+    repeats = {c: c in ("learned_stochastic", "random") for c in CONTROLLERS}
+    small = plan(["h"], [50.0], repeats, 2)
+    large = plan(["h", "2h"], [25.0, 50.0, 75.0], repeats, 10)
+    assert len(small) == 3 + 2 * 2 and len(large) == 2 * 3 * (3 + 2 * 10)
+    by_name = {(j.controller, j.geometry, j.velocity, j.sample): j.uid for j in large}
+    assert all(by_name[(j.controller, j.geometry, j.velocity, j.sample)] == j.uid for j in small)
+    assert len(set(by_name.values())) == len(large)
+
+
 # ----- CLI errors --------------------------------------------------------------------------------------
 def _grid_csv(path, cells):
     write_grid_csv(cells, path)
@@ -245,7 +257,7 @@ def _grid_csv(path, cells):
 #: bad input -> what its one-line error says
 BAD_INPUT = {"no_config": "not a run directory", "lorenz": "not a train-foam run",
              "no_checkpoint": "no checkpoint", "velocity": "positive", "bad_csv": "not a grid-foam grid.csv",
-             "no_csv": "cannot read",
+             "no_csv": "cannot read", "twice": "must be distinct",
              "unconverged_csv": "no converged cell", "wrong_obs": "observations of size 1"}
 
 
@@ -263,6 +275,8 @@ def test_bad_input_is_one_line_exit_2(capsys, tmp_path, saved_run, case):
         (run / "config.json").write_text((saved_run / "config.json").read_text())
     elif case == "velocity":
         extra = ["--velocities", "50", "-5"]
+    elif case == "twice":
+        extra = ["--velocities", "50", "25", "50.0"]
     elif case == "bad_csv":
         (tmp_path / "g.csv").write_text("a,b\n1,2\n")
         extra = ["--baseline-grid", tmp_path / "g.csv"]

@@ -15,9 +15,11 @@ Controllers, all in the same run (see foam_controllers):
 - ``tutorial_defaults``: the tutorial's (U 0.9, p 0.8; k/omega as the training case sets them); one run;
 - ``random``: factors uniform in the action box at every step, ``samples`` runs (the paper's baseline).
 
-Every episode's uid is its index in the plan; it seeds the episode's random actions, so the same
-command gives the same numbers. :func:`evaluate_foam` writes ``eval.json``, ``eval.csv`` and the
-figures (foam_plots) into the output directory and returns the report.
+Every episode's uid is a hash of (controller, geometry, velocity, sample); it seeds the episode's
+random actions, so the same command gives the same numbers, and an episode stays the same when other
+velocities, geometries or samples are added to the command. :func:`evaluate_foam` writes
+``eval.json``, ``eval.csv`` and the figures (foam_plots) into the output directory and returns the
+report.
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ import io
 import json
 import math
 import time
+import zlib
 from collections import Counter
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -80,6 +83,8 @@ class EvalSpec:
         _positive("velocities", self.velocities)
         if self.step_heights is not None:
             _positive("step_heights", self.step_heights)
+            _distinct("step_heights", [geometry_name(h) for h in self.step_heights])
+        _distinct("velocities", [f"{v:g}" for v in self.velocities])
         _positive("mesh_scale", (self.mesh_scale,))
         for name in ("samples", "pool"):
             value = getattr(self, name)
@@ -113,6 +118,11 @@ class Baseline:
 def _positive(name: str, values: Sequence[float]) -> None:
     if not values or not all(isinstance(v, int | float) and math.isfinite(v) and v > 0 for v in values):
         raise ValueError(f"{name} must be numbers > 0, got {list(values)}")
+
+
+def _distinct(name: str, labels: Sequence[str]) -> None:
+    if len(set(labels)) != len(labels):
+        raise ValueError(f"{name} must be distinct, got {list(labels)}")
 
 
 def geometry_name(step_height: float | None) -> str:
@@ -192,15 +202,23 @@ def baseline_from_grid(spec: EvalSpec, cfg: FoamEnvConfig, velocity: float, geom
     return Baseline(best.alpha_u, best.alpha_p, source, best.iterations)
 
 
+def episode_uid(controller: str, geometry: str, velocity: float, sample: int) -> int:
+    """A stable 31-bit id of one episode of the protocol (it seeds the episode)."""
+    return zlib.crc32(f"{controller}/{geometry}/{velocity:g}/{sample}".encode()) & 0x7FFFFFFF
+
+
 def plan(names: Sequence[str], velocities: Sequence[float], repeats: dict[str, bool],
          samples: int) -> list[Job]:
-    """Every episode of the evaluation: geometry, velocity, controller, sample (uid = plan index)."""
+    """Every episode of the evaluation, geometry by geometry, velocity by velocity."""
     jobs: list[Job] = []
     for geometry in names:
         for velocity in velocities:
             for controller in CONTROLLERS:
                 for sample in range(samples if repeats[controller] else 1):
-                    jobs.append(Job(len(jobs), controller, geometry, float(velocity), sample))
+                    uid = episode_uid(controller, geometry, velocity, sample)
+                    jobs.append(Job(uid, controller, geometry, float(velocity), sample))
+    if len({job.uid for job in jobs}) != len(jobs):  # a crc32 collision: never seen, but never silent
+        raise ValueError("two episodes of the plan got the same uid; change a velocity slightly")
     return jobs
 
 
@@ -244,16 +262,18 @@ def evaluate_foam(spec: EvalSpec, on_result: Callable[[EpisodeResult, int, int],
     controllers = make_controllers(run, baseline, spec.pool, spec.seed)
     jobs = plan(list(shapes), spec.velocities, {k: c.repeats for k, c in controllers.items()}, spec.samples)
     results: list[EpisodeResult] = []
+    done = 0
 
-    def collect(result: EpisodeResult) -> None:
-        results.append(result)
+    def progress(result: EpisodeResult) -> None:
+        nonlocal done
+        done += 1
         if on_result is not None:
-            on_result(result, len(results), len(jobs))
+            on_result(result, done, len(jobs))
 
     for name, height in shapes.items():
         cfg = eval_config(run.foam, height, spec.mesh_scale, [baseline.factors, TUTORIAL_DEFAULTS])
-        run_episodes(cfg, [j for j in jobs if j.geometry == name], controllers, spec.pool, collect)
-    results.sort(key=lambda r: r.job.uid)
+        mine = [j for j in jobs if j.geometry == name]
+        results += run_episodes(cfg, mine, controllers, spec.pool, progress)
     report = build_report(spec, run, baseline, shapes, results, time.monotonic() - started)
     write_outputs(report, results, out)
     return report

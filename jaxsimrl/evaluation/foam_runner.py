@@ -38,7 +38,8 @@ EPISODE_DIR = "episode"
 
 @dataclass(frozen=True)
 class Job:
-    """One planned episode: ``uid`` is its index in the whole evaluation plan (it seeds the episode)."""
+    """One planned episode; ``uid`` names it uniquely and seeds it (its reset and its controller's
+    random draws)."""
 
     uid: int
     controller: str
