@@ -243,7 +243,6 @@ def evaluate_foam(spec: EvalSpec, on_result: Callable[[EpisodeResult, int, int],
     figures to ``spec.output_dir``; return the report. Bad input: one-line ValueError, before any
     solver starts."""
     from jaxsimrl.evaluation.foam_policy import load_foam_run
-    from jaxsimrl.evaluation.foam_runner import run_episodes
 
     say = say or (lambda text: None)
     spec.validate()
@@ -252,8 +251,8 @@ def evaluate_foam(spec: EvalSpec, on_result: Callable[[EpisodeResult, int, int],
     baseline = baseline_from_csv(spec.baseline_grid) if spec.baseline_grid is not None else None
     out = _make_output_dir(spec.output_dir)
     started = time.monotonic()
-    first = next(iter(shapes))
     if baseline is None:
+        first = next(iter(shapes))
         say(f"no --baseline-grid: searching the best constant on a grid at V = {spec.velocities[0]:g} m/s, "
             f"{first}")
         grid_cfg = eval_config(run.foam, shapes[first], spec.mesh_scale, [TUTORIAL_DEFAULTS])
@@ -261,6 +260,18 @@ def evaluate_foam(spec: EvalSpec, on_result: Callable[[EpisodeResult, int, int],
     say(f"best constant ({baseline.alpha_u:g}, {baseline.alpha_p:g}) from {baseline.source}")
     controllers = make_controllers(run, baseline, spec.pool, spec.seed)
     jobs = plan(list(shapes), spec.velocities, {k: c.repeats for k, c in controllers.items()}, spec.samples)
+    results = _run_plan(spec, run, shapes, jobs, controllers, baseline, on_result)
+    report = build_report(spec, run, baseline, shapes, results, time.monotonic() - started)
+    write_outputs(report, results, out)
+    return report
+
+
+def _run_plan(spec: EvalSpec, run: Any, shapes: dict[str, float | None], jobs: list[Job],
+              controllers: dict[str, Any], baseline: Baseline,
+              on_result: Callable[[EpisodeResult, int, int], None] | None) -> list[EpisodeResult]:
+    """Every job, one geometry (one case, one pool) after the other; results in plan order."""
+    from jaxsimrl.evaluation.foam_runner import run_episodes
+
     results: list[EpisodeResult] = []
     done = 0
 
@@ -274,9 +285,7 @@ def evaluate_foam(spec: EvalSpec, on_result: Callable[[EpisodeResult, int, int],
         cfg = eval_config(run.foam, height, spec.mesh_scale, [baseline.factors, TUTORIAL_DEFAULTS])
         mine = [j for j in jobs if j.geometry == name]
         results += run_episodes(cfg, mine, controllers, spec.pool, progress)
-    report = build_report(spec, run, baseline, shapes, results, time.monotonic() - started)
-    write_outputs(report, results, out)
-    return report
+    return results
 
 
 def _make_output_dir(out: Path) -> Path:
