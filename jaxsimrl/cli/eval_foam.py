@@ -101,6 +101,8 @@ class EvalProgress:
         from rich.console import Console
 
         self.console = Console(highlight=False)
+        if not self.console.is_terminal:
+            self.console.width = LOG_WIDTH  # rich's default of 80 columns would wrap the results table
         self._progress: Any = None
         self._task: Any = None
 
@@ -133,6 +135,8 @@ class EvalProgress:
         self._progress.update(self._task, completed=done, description=f"last: {text}")
 
 
+#: Columns of the output off a terminal (logs, pipes).
+LOG_WIDTH = 120
 #: Short controller names for the terminal table.
 SHORT_NAMES = {"learned_deterministic": "learned mean", "learned_stochastic": "learned sampled",
                "best_constant": "best constant", "tutorial_defaults": "defaults", "random": "random"}
