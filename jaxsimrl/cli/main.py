@@ -13,7 +13,8 @@ import sys
 from jaxsimrl.cli.errors import OneLineArgumentParser, UsageError
 
 # Modules that contribute subcommands.
-SUBCOMMAND_MODULES = ("jaxsimrl.cli.lorenz", "jaxsimrl.cli.foam", "jaxsimrl.cli.train_foam")
+SUBCOMMAND_MODULES = ("jaxsimrl.cli.lorenz", "jaxsimrl.cli.foam", "jaxsimrl.cli.train_foam",
+                      "jaxsimrl.cli.eval_foam")
 
 
 def build_parser() -> OneLineArgumentParser:

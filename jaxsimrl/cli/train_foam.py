@@ -158,7 +158,7 @@ def _fresh_plan(args: argparse.Namespace) -> FoamPlan:
 def _foam_config(args: argparse.Namespace, extra: dict[str, Any]) -> Any:
     """The FoamEnvConfig: the paper's built-in case, then --config's "foam" section, then flags."""
     from foam_bridge.config import FoamEnvConfig
-    from jaxsimrl.envs.foam import foam_config_from_json, foam_config_to_json
+    from jaxsimrl.envs.foam_config import foam_config_from_json, foam_config_to_json
 
     values = {**foam_config_to_json(FoamEnvConfig(simple_variant="SIMPLEC", relax_k_omega=0.8)), **extra}
     flags = {"mesh_scale": args.mesh_scale, "step_height": args.step_height,
@@ -173,7 +173,7 @@ def _foam_config(args: argparse.Namespace, extra: dict[str, Any]) -> Any:
 def _resume_plan(args: argparse.Namespace) -> FoamPlan:
     from foam_bridge.backends import validate_pool
     from jaxsimrl.agents.ppo.config import PPOConfig
-    from jaxsimrl.envs.foam import foam_config_from_json
+    from jaxsimrl.envs.foam_config import foam_config_from_json
     from jaxsimrl.runs.run_dir import RunDir
 
     fixed = ["config", "num_envs", "mesh_scale", "step_height", "max_iterations", "case", "seed", "out"]
@@ -225,7 +225,7 @@ def run_train_foam(args: argparse.Namespace, on_chunk: Any = None) -> int:
     """Entry point of train-foam; ``on_chunk(updates_done)`` is a test hook."""
     plan = _resume_plan(args) if args.resume else _fresh_plan(args)
     if args.print_config:
-        from jaxsimrl.envs.foam import foam_config_to_json
+        from jaxsimrl.envs.foam_config import foam_config_to_json
 
         sys.stdout.write(json.dumps({"ppo": plan.ppo.to_dict(), "foam": foam_config_to_json(plan.foam),
                                      "episodes": plan.episodes, "pool": plan.pool}, indent=2) + "\n")
@@ -345,7 +345,7 @@ def _config_record(plan: FoamPlan) -> dict[str, Any]:
 
     import jax
 
-    from jaxsimrl.envs.foam import foam_config_to_json
+    from jaxsimrl.envs.foam_config import foam_config_to_json
 
     now = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
     base = plan.record if plan.resume else {"env": "foam", "seed": plan.seed, "created_utc": now}

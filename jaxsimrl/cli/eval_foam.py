@@ -1,0 +1,167 @@
+"""``jaxsimrl eval-foam RUN_DIR``: a train-foam policy against baselines (logic in evaluation.foam_eval).
+
+    jaxsimrl eval-foam runs/foam-1 --pool 4 --baseline-grid runs/grid/grid.csv
+
+Writes RUN_DIR/eval/ (or --out): eval.json, eval.csv, box_V<v>.png, mean_V<v>.png, factors.png. Bad input
+(not a run directory, no checkpoint, a velocity <= 0, a bad grid CSV, OpenFOAM missing) is one line on
+stderr and exit code 2, before any solver starts.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+from pathlib import Path
+from typing import Any
+
+from jaxsimrl.cli.errors import fail, positive_float, positive_int
+
+
+def _seed(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}")
+    return value
+
+
+def register(subparsers: Any) -> None:
+    """Add the ``eval-foam`` subcommand."""
+    from jaxsimrl.cli.foam import relaxation_factor
+
+    parser = subparsers.add_parser(
+        "eval-foam", help="evaluate a train-foam policy against constant, default and random factors",
+        description="The paper's test protocol on RUN_DIR's last checkpoint: inlet velocities 25, 50, "
+        "75 m/s, the test criterion, step heights h and 2h, the full mesh. Controllers: the learned policy "
+        "(deterministic: one run per cell; stochastic: --samples runs), the best constant factors, the "
+        "tutorial's defaults (U 0.9, p 0.8) and random factors (--samples runs). Every run reports SIMPLE "
+        "iterations, wall time and linear-solver iterations.")
+    parser.add_argument("run_dir", metavar="RUN_DIR", help="a run directory written by train-foam")
+    parser.add_argument("--velocities", type=positive_float, nargs="+", metavar="V",
+                        default=[25.0, 50.0, 75.0], help="inlet velocities in m/s (default: 25 50 75)")
+    parser.add_argument("--step-height", type=positive_float, nargs="+", metavar="M", dest="step_height",
+                        help="step heights in metres (default: 0.0127 0.0254, i.e. h and 2h)")
+    parser.add_argument("--mesh-scale", type=positive_float, default=1.0,
+                        help="mesh resolution factor (1.0 = the full 20,540-cell mesh; default 1.0)")
+    parser.add_argument("--pool", type=positive_int, default=os.cpu_count() or 1,
+                        help="worker processes, one simpleFoam each (default: the CPU count)")
+    parser.add_argument("--samples", type=positive_int, default=10,
+                        help="runs per cell of the stochastic policy and of random factors (default 10)")
+    parser.add_argument("--baseline-grid", metavar="GRID.csv", type=Path,
+                        help="a grid.csv of grid-foam: its converged cell with the fewest iterations is the "
+                        "best constant (default: run a small grid at the first velocity on the first "
+                        "geometry)")
+    parser.add_argument("--grid-alpha-u", type=relaxation_factor, nargs="+", default=[0.8, 0.9, 0.95],
+                        metavar="A", help="alpha_u of that small grid (default 0.8 0.9 0.95)")
+    parser.add_argument("--grid-alpha-p", type=relaxation_factor, nargs="+", default=[0.8, 0.9, 0.95],
+                        metavar="B", help="alpha_p of that small grid (default 0.8 0.9 0.95)")
+    parser.add_argument("--seed", type=_seed, default=0,
+                        help="seeds the sampled and random actions (default 0): the same command gives the "
+                        "same numbers")
+    parser.add_argument("--out", metavar="DIR", type=Path, help="output directory (default RUN_DIR/eval)")
+    parser.set_defaults(func=run_eval_foam)
+
+
+def _check_openfoam() -> None:
+    from foam_bridge.errors import OpenFOAMNotFoundError
+    from foam_bridge.openfoam import find_openfoam
+
+    try:
+        find_openfoam()
+    except OpenFOAMNotFoundError as err:
+        fail(str(err))
+
+
+def run_eval_foam(args: argparse.Namespace) -> int:
+    """Run the evaluation; print progress and the table of results."""
+    from jaxsimrl.evaluation.foam_eval import EvalSpec, evaluate_foam
+
+    spec = EvalSpec(run_dir=Path(args.run_dir), velocities=tuple(args.velocities),
+                    step_heights=None if args.step_height is None else tuple(args.step_height),
+                    mesh_scale=args.mesh_scale, samples=args.samples, pool=args.pool, seed=args.seed,
+                    baseline_grid=args.baseline_grid, grid_alpha_u=tuple(args.grid_alpha_u),
+                    grid_alpha_p=tuple(args.grid_alpha_p), out=args.out)
+    _check_openfoam()
+    with EvalProgress() as progress:
+        try:
+            report = evaluate_foam(spec, progress.advance, progress.say)
+        except ValueError as err:
+            fail(str(err))
+    progress.console.print(results_table(report))
+    progress.console.print(f"wrote {spec.output_dir}/eval.json, eval.csv and the figures")
+    return 0
+
+
+class EvalProgress:
+    """A rich bar over the planned runs on a terminal; one plain line per finished run otherwise."""
+
+    def __init__(self) -> None:
+        from rich.console import Console
+
+        self.console = Console(highlight=False)
+        if not self.console.is_terminal:
+            self.console.width = LOG_WIDTH  # rich's default of 80 columns would wrap the results table
+        self._progress: Any = None
+        self._task: Any = None
+
+    def __enter__(self) -> EvalProgress:
+        if self.console.is_terminal:
+            from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+            columns = (TextColumn("[bold]eval-foam"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+                       TextColumn("{task.description}"))
+            self._progress = Progress(*columns, console=self.console)
+            self._progress.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self._progress is not None:
+            self._progress.stop()
+
+    def say(self, text: str) -> None:
+        self.console.print(text, soft_wrap=True)
+
+    def advance(self, result: Any, done: int, total: int) -> None:
+        job = result.job
+        text = (f"{job.geometry} V={job.velocity:g} {job.controller} #{job.sample}: {result.outcome} @ "
+                f"{result.iterations} it, {result.wall_time_s:.1f} s")
+        if self._progress is None:
+            self.say(f"[{done}/{total}] {text}")
+            return
+        if self._task is None:
+            self._task = self._progress.add_task("", total=total)
+        self._progress.update(self._task, completed=done, description=f"last: {text}")
+
+
+#: Columns of the output off a terminal (logs, pipes).
+LOG_WIDTH = 120
+#: Short controller names for the terminal table.
+SHORT_NAMES = {"learned_deterministic": "learned mean", "learned_stochastic": "learned sampled",
+               "best_constant": "best constant", "tutorial_defaults": "defaults", "random": "random"}
+
+
+def results_table(report: dict[str, Any]) -> Any:
+    """A rich table: per geometry, velocity and controller, the costs (mean +- std of converged runs)."""
+    from rich import box
+    from rich.table import Table
+
+    table = Table(title="eval-foam: mean +- std over the converged runs", box=box.SIMPLE_HEAD, padding=(0, 1))
+    for column in ("geom", "V", "controller", "conv.", "SIMPLE its", "wall s", "CPU s", "linear its"):
+        table.add_column(column, justify="left" if column in ("geom", "controller") else "right")
+    for geometry in report["geometries"]:
+        for velocity in report["velocities"]:
+            for controller, cells in report["results"].items():
+                cell = cells[geometry][f"{velocity:g}"]
+                converged = f"{cell['converged']}/{len(cell['runs'])}"
+                table.add_row(geometry, f"{velocity:g}", SHORT_NAMES.get(controller, controller), converged,
+                              _pm(cell["iterations"], 0), _pm(cell["wall_time_s"], 1),
+                              _pm(cell["cpu_time_s"], 1), _pm(cell["linear_iterations"], 0))
+    return table
+
+
+def _pm(summary: dict[str, Any], digits: int) -> str:
+    if summary["mean"] is None:
+        return "-"
+    return f"{summary['mean']:.{digits}f}±{summary['std']:.{digits}f}"

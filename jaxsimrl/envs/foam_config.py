@@ -1,0 +1,70 @@
+"""A FoamEnvConfig as JSON and back: the ``"foam"`` section of a train-foam run's config.json.
+
+``foam_config_to_json(cfg)`` gives a JSON-ready dict with every FoamEnvConfig field by name (tuples as
+lists, ``convergence`` as a plain dict, paths as strings); ``foam_config_from_json(d)`` rebuilds the
+config, turning the lists back into tuples. Fields missing from ``d`` take FoamEnvConfig's defaults (a
+run written before a field existed still loads); an unknown key or a value of the wrong kind is a
+one-line ValueError. The fields are read from the dataclass itself, so a field added to FoamEnvConfig
+round-trips without a change here.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from foam_bridge.config import FoamEnvConfig
+
+#: Fields stored as JSON lists that FoamEnvConfig holds as tuples.
+_TUPLE_FIELDS = ("action_low", "action_high", "turbulence_fields")
+
+
+def foam_config_to_json(cfg: FoamEnvConfig) -> dict[str, Any]:
+    """Every field of ``cfg`` as JSON-ready values (the inverse of :func:`foam_config_from_json`)."""
+    out: dict[str, Any] = {}
+    for item in dataclasses.fields(cfg):
+        out[item.name] = _to_json(getattr(cfg, item.name))
+    return out
+
+
+def foam_config_from_json(data: Any) -> FoamEnvConfig:
+    """The FoamEnvConfig of a config.json ``"foam"`` section, validated; one-line ValueError if bad."""
+    if not isinstance(data, Mapping):
+        raise ValueError(f"the foam config must be a JSON object, got {type(data).__name__}")
+    known = {item.name for item in dataclasses.fields(FoamEnvConfig)}
+    unknown = sorted(set(data) - known)
+    if unknown:
+        raise ValueError(f"unknown foam config key(s): {', '.join(unknown)}")
+    values = dict(data)
+    for name in _TUPLE_FIELDS:
+        if name in values:
+            values[name] = _as_tuple(name, values[name])
+    if isinstance(values.get("inlet_velocity"), list):
+        values["inlet_velocity"] = _as_tuple("inlet_velocity", values["inlet_velocity"])
+    if "convergence" in values:
+        if not isinstance(values["convergence"], Mapping):
+            raise ValueError(f"foam config convergence: expected {{field: threshold}}, got "
+                             f"{values['convergence']!r}")
+        values["convergence"] = dict(values["convergence"])
+    try:
+        return FoamEnvConfig(**values).validate()
+    except TypeError as err:  # e.g. a string where a number belongs, met inside validate()
+        raise ValueError(f"foam config: {err}") from None
+
+
+def _to_json(value: Any) -> Any:
+    if isinstance(value, tuple | list):
+        return [_to_json(v) for v in value]
+    if isinstance(value, Mapping):
+        return {str(k): _to_json(v) for k, v in value.items()}
+    if isinstance(value, Path):
+        return str(value)
+    return value
+
+
+def _as_tuple(name: str, value: Any) -> tuple:
+    if not isinstance(value, list | tuple):
+        raise ValueError(f"foam config {name}: expected a list, got {value!r}")
+    return tuple(value)

@@ -1,0 +1,87 @@
+"""The controllers eval-foam compares: who chooses (alpha_u, alpha_p) at every step of an episode.
+
+Every controller acts for a batch of running episodes, each named by its ``uid`` (its index in the
+evaluation plan), and its actions depend only on (seed, uid, step) and the episode's own observations,
+never on the batch it shares: so the same command gives the same numbers whatever the pool size.
+
+- :class:`ConstantController`: the same factors at every step (best constant, the tutorial's defaults).
+- :class:`RandomController`: factors uniform in the action box at every step (the paper's baseline).
+- :class:`LearnedController`: the trained policy, deterministic (its mean action) or stochastic.
+
+``repeats`` says whether more than one run per (geometry, velocity) is informative: a deterministic
+controller on a deterministic solver gives the same episode every time.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from jaxsimrl.evaluation.foam_policy import PolicyActor
+
+
+class ConstantController:
+    """The same (alpha_u, alpha_p) at every step."""
+
+    repeats = False
+
+    def __init__(self, name: str, factors: Sequence[float]) -> None:
+        self.name = name
+        self.factors = np.asarray(factors, np.float64).reshape(2)
+
+    def begin(self, uid: int) -> None:
+        pass
+
+    def act(self, uids: Sequence[int], obs: np.ndarray, steps: Sequence[int]) -> np.ndarray:
+        return np.tile(self.factors, (len(uids), 1))
+
+    def end(self, uid: int) -> None:
+        pass
+
+
+class RandomController:
+    """Factors drawn uniformly in [low, high] at every step, from a stream seeded by (seed, uid)."""
+
+    repeats = True
+
+    def __init__(self, name: str, low: Sequence[float], high: Sequence[float], seed: int) -> None:
+        self.name = name
+        self.low, self.high = np.asarray(low, np.float64), np.asarray(high, np.float64)
+        self.seed = seed
+        self._streams: dict[int, np.random.Generator] = {}
+
+    def begin(self, uid: int) -> None:
+        self._streams[uid] = np.random.default_rng([self.seed, uid])
+
+    def act(self, uids: Sequence[int], obs: np.ndarray, steps: Sequence[int]) -> np.ndarray:
+        return np.stack([self._streams[uid].uniform(self.low, self.high) for uid in uids])
+
+    def end(self, uid: int) -> None:
+        self._streams.pop(uid, None)
+
+
+class LearnedController:
+    """The trained policy: its mean action (``deterministic``) or a sample of it at every step, drawn
+    with the keys of ``seed`` (see PolicyActor)."""
+
+    def __init__(self, name: str, actor: PolicyActor, deterministic: bool, seed: int = 0) -> None:
+        self.name = name
+        self.actor = actor
+        self.deterministic = deterministic
+        self.seed = seed
+        self.repeats = not deterministic
+        self._carries: dict[int, Any] = {}
+
+    def begin(self, uid: int) -> None:
+        self._carries[uid] = self.actor.initial_carry()
+
+    def act(self, uids: Sequence[int], obs: np.ndarray, steps: Sequence[int]) -> np.ndarray:
+        actions, carries = self.actor.act(obs, [self._carries[uid] for uid in uids], list(uids), list(steps),
+                                          self.deterministic, self.seed)
+        self._carries.update(zip(uids, carries, strict=True))
+        return actions
+
+    def end(self, uid: int) -> None:
+        self._carries.pop(uid, None)

@@ -1,0 +1,397 @@
+"""eval-foam: a train-foam policy against baselines under the paper's test protocol.
+
+The protocol (Pawar & Maulik, "Solver convergence acceleration", test): inlet velocities 25, 50 and
+75 m/s (25 and 75 lie outside the training range), the test criterion (TEST_CONVERGENCE), step heights
+h and 2h, the full mesh. Every other case setting (SIMPLE variant, k/omega relaxation, interval,
+action box, residual features, iteration cap, ...) is the training run's own.
+
+Controllers, all in the same run (see foam_controllers):
+
+- ``learned_deterministic``: the policy's mean action; one run per (geometry, velocity): the solver is
+  deterministic, so repeats would be identical;
+- ``learned_stochastic``: actions sampled from the policy, ``samples`` runs (the paper: 10);
+- ``best_constant``: the converged cell with the fewest iterations of a grid-foam grid.csv, or of a
+  small grid eval-foam runs itself at the first velocity on the first geometry; one run per cell;
+- ``tutorial_defaults``: the tutorial's (U 0.9, p 0.8; k/omega as the training case sets them); one run;
+- ``random``: factors uniform in the action box at every step, ``samples`` runs (the paper's baseline).
+
+Every episode's uid is a hash of (controller, geometry, velocity, sample); it seeds the episode's
+random actions, so the same command gives the same numbers, and an episode stays the same when other
+velocities, geometries or samples are added to the command. :func:`evaluate_foam` writes
+``eval.json``, ``eval.csv`` and the figures (foam_plots) into the output directory and returns the
+report.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import io
+import json
+import math
+import time
+import zlib
+from collections import Counter
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from foam_bridge.config import STEP_HEIGHT_H, TEST_CONVERGENCE, FoamEnvConfig
+from jaxsimrl.evaluation.foam_runner import EpisodeResult, Job
+from jaxsimrl.runs.atomic import atomic_write_json, atomic_write_text
+
+EVAL_DIR = "eval"
+EVAL_JSON = "eval.json"
+EVAL_CSV = "eval.csv"
+GRID_CSV = "baseline_grid.csv"
+GRID_PNG = "baseline_grid.png"
+DEFAULT_VELOCITIES = (25.0, 50.0, 75.0)
+DEFAULT_STEP_HEIGHTS = (STEP_HEIGHT_H, 2 * STEP_HEIGHT_H)
+#: The grid eval-foam runs for the best constant when no --baseline-grid is given (both axes).
+DEFAULT_GRID = (0.8, 0.9, 0.95)
+#: backwardFacingStep2D's own relaxation factors (U 0.9, p 0.8; k and omega as the case sets them).
+TUTORIAL_DEFAULTS = (0.9, 0.8)
+#: Controller keys, in the order of tables and figures.
+CONTROLLERS = ("learned_deterministic", "learned_stochastic", "best_constant", "tutorial_defaults", "random")
+#: FoamEnvConfig fields left out of the report's "case": they vary per cell, or the report gives them
+#: apart ("action_box": the training box; the env's own box is widened to hold the constants).
+CASE_OMITTED = ("work_dir", "keep_cases", "step_height", "inlet_velocity", "action_low", "action_high")
+CSV_COLUMNS = ("controller", "geometry", "step_height", "velocity", "sample", "outcome", "cause",
+               "iterations", "wall_time_s", "cpu_time_s", "linear_iterations", "p_linear_iterations",
+               "steps", "actions")
+
+
+@dataclass(frozen=True)
+class EvalSpec:
+    """What to evaluate and how; ``step_heights=None`` -> h and 2h (a user's case: its own geometry)."""
+
+    run_dir: Path
+    velocities: tuple[float, ...] = DEFAULT_VELOCITIES
+    step_heights: tuple[float, ...] | None = None
+    mesh_scale: float = 1.0
+    samples: int = 10
+    pool: int = 1
+    seed: int = 0
+    baseline_grid: Path | None = None
+    grid_alpha_u: tuple[float, ...] = DEFAULT_GRID
+    grid_alpha_p: tuple[float, ...] = DEFAULT_GRID
+    out: Path | None = None
+
+    def validate(self) -> EvalSpec:
+        """One-line ValueError naming the first bad field; returns self."""
+        _positive("velocities", self.velocities)
+        if self.step_heights is not None:
+            _positive("step_heights", self.step_heights)
+            _distinct("step_heights", [geometry_name(h) for h in self.step_heights])
+        _distinct("velocities", [f"{v:g}" for v in self.velocities])
+        _positive("mesh_scale", (self.mesh_scale,))
+        for name in ("samples", "pool"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
+        for name in ("grid_alpha_u", "grid_alpha_p"):
+            values = getattr(self, name)
+            if not values or not all(math.isfinite(v) and 0 < v <= 1 for v in values):
+                raise ValueError(f"{name}: relaxation factors must be in (0, 1], got {list(values)}")
+        return self
+
+    @property
+    def output_dir(self) -> Path:
+        return Path(self.out) if self.out is not None else Path(self.run_dir) / EVAL_DIR
+
+
+@dataclass(frozen=True)
+class Baseline:
+    """The best constant factors and where they come from."""
+
+    alpha_u: float
+    alpha_p: float
+    source: str
+    grid_iterations: int
+
+    @property
+    def factors(self) -> tuple[float, float]:
+        return self.alpha_u, self.alpha_p
+
+
+def _positive(name: str, values: Sequence[float]) -> None:
+    if not values or not all(isinstance(v, int | float) and math.isfinite(v) and v > 0 for v in values):
+        raise ValueError(f"{name} must be numbers > 0, got {list(values)}")
+
+
+def _distinct(name: str, labels: Sequence[str]) -> None:
+    if len(set(labels)) != len(labels):
+        raise ValueError(f"{name} must be distinct, got {list(labels)}")
+
+
+def geometry_name(step_height: float | None) -> str:
+    """"h", "2h", "1.5h" for the built-in case's step heights; "case" for a user's case (None)."""
+    if step_height is None:
+        return "case"
+    ratio = step_height / STEP_HEIGHT_H
+    return "h" if math.isclose(ratio, 1.0) else f"{ratio:.4g}h"
+
+
+def geometries(spec: EvalSpec, train: FoamEnvConfig) -> dict[str, float | None]:
+    """Geometry name -> step height (None: a user's case, whose geometry is its own)."""
+    if train.case_dir is not None:
+        if spec.step_heights is not None:
+            raise ValueError("step heights apply to the built-in case only; this run trained on "
+                             f"{train.case_dir}")
+        return {"case": None}
+    heights = DEFAULT_STEP_HEIGHTS if spec.step_heights is None else spec.step_heights
+    return {geometry_name(h): float(h) for h in heights}
+
+
+def eval_config(train: FoamEnvConfig, step_height: float | None, mesh_scale: float,
+                constants: Sequence[tuple[float, float]]) -> FoamEnvConfig:
+    """The training config under the test protocol: test criterion, this geometry and mesh; its action
+    box widened to hold the constant factors (they must not be clipped; learned and random actions lie
+    in the training box anyway)."""
+    from foam_bridge.grid import grid_config
+
+    cfg = dataclasses.replace(train, mesh_scale=mesh_scale, convergence=dict(TEST_CONVERGENCE),
+                              work_dir=None, keep_cases=False)
+    if step_height is not None:
+        cfg = dataclasses.replace(cfg, step_height=step_height)
+    return grid_config(cfg, [c[0] for c in constants], [c[1] for c in constants])
+
+
+def baseline_from_csv(path: str | Path) -> Baseline:
+    """The best converged cell of a grid-foam grid.csv; one-line ValueError for a missing or bad file."""
+    from foam_bridge.grid import best_cell, read_grid_csv
+
+    try:
+        cells = read_grid_csv(path)
+    except OSError as err:
+        raise ValueError(f"--baseline-grid {path}: cannot read it ({err.strerror})") from None
+    except (KeyError, ValueError, TypeError, csv.Error) as err:
+        raise ValueError(f"--baseline-grid {path}: not a grid-foam grid.csv ({type(err).__name__}: "
+                         f"{err})") from None
+    best = best_cell(cells)
+    if best is None:
+        raise ValueError(f"--baseline-grid {path}: no converged cell to take the best constant from")
+    if not all(0 < f <= 1 for f in (best.alpha_u, best.alpha_p)):
+        raise ValueError(f"--baseline-grid {path}: best cell ({best.alpha_u}, {best.alpha_p}) is outside "
+                         f"(0, 1]")
+    return Baseline(best.alpha_u, best.alpha_p, f"grid.csv {path} (best converged cell, as recorded there)",
+                    best.iterations)
+
+
+def baseline_from_grid(spec: EvalSpec, cfg: FoamEnvConfig, velocity: float, geometry: str,
+                       say: Callable[[str], None]) -> Baseline:
+    """Run the small constant grid at ``velocity`` on ``geometry``; writes it to the output directory."""
+    from foam_bridge.grid import best_cell, plot_grid, run_grid, write_grid_csv
+
+    def on_cell(cell: Any) -> None:
+        say(f"grid ({cell.alpha_u:g}, {cell.alpha_p:g}): {cell.outcome} @ {cell.iterations} it")
+
+    cells = run_grid(dataclasses.replace(cfg, inlet_velocity=velocity), spec.grid_alpha_u, spec.grid_alpha_p,
+                     pool=spec.pool, on_cell=on_cell)
+    out = spec.output_dir
+    write_grid_csv(cells, out / GRID_CSV)
+    title = f"best constant search: V = {velocity:g} m/s, {geometry}, test criterion"
+    plot_grid(cells, out / GRID_PNG, title)
+    best = best_cell(cells)
+    if best is None:
+        raise ValueError(f"no cell of the baseline grid converged at {velocity:g} m/s on {geometry} (see "
+                         f"{out / GRID_CSV}); give --baseline-grid or other --grid-alpha-u/--grid-alpha-p")
+    source = (f"grid run by eval-foam at V = {velocity:g} m/s on {geometry}: alpha_u in "
+              f"{list(spec.grid_alpha_u)}, alpha_p in {list(spec.grid_alpha_p)} ({out / GRID_CSV})")
+    return Baseline(best.alpha_u, best.alpha_p, source, best.iterations)
+
+
+def episode_uid(controller: str, geometry: str, velocity: float, sample: int) -> int:
+    """A stable 31-bit id of one episode of the protocol (it seeds the episode)."""
+    return zlib.crc32(f"{controller}/{geometry}/{velocity:g}/{sample}".encode()) & 0x7FFFFFFF
+
+
+def plan(names: Sequence[str], velocities: Sequence[float], repeats: dict[str, bool],
+         samples: int) -> list[Job]:
+    """Every episode of the evaluation, geometry by geometry, velocity by velocity."""
+    jobs: list[Job] = []
+    for geometry in names:
+        for velocity in velocities:
+            for controller in CONTROLLERS:
+                for sample in range(samples if repeats[controller] else 1):
+                    uid = episode_uid(controller, geometry, velocity, sample)
+                    jobs.append(Job(uid, controller, geometry, float(velocity), sample))
+    if len({job.uid for job in jobs}) != len(jobs):  # a crc32 collision: never seen, but never silent
+        raise ValueError("two episodes of the plan got the same uid; change a velocity slightly")
+    return jobs
+
+
+def make_controllers(run: Any, baseline: Baseline, pool: int, seed: int) -> dict[str, Any]:
+    """The five controllers of the protocol, keyed by CONTROLLERS."""
+    from jaxsimrl.evaluation.foam_controllers import ConstantController, LearnedController, RandomController
+    from jaxsimrl.evaluation.foam_policy import PolicyActor
+
+    actor = PolicyActor(run, pool)
+    return {
+        "learned_deterministic": LearnedController("learned_deterministic", actor, True, seed),
+        "learned_stochastic": LearnedController("learned_stochastic", actor, False, seed),
+        "best_constant": ConstantController("best_constant", baseline.factors),
+        "tutorial_defaults": ConstantController("tutorial_defaults", TUTORIAL_DEFAULTS),
+        "random": RandomController("random", run.foam.action_low, run.foam.action_high, seed),
+    }
+
+
+def evaluate_foam(spec: EvalSpec, on_result: Callable[[EpisodeResult, int, int], None] | None = None,
+                  say: Callable[[str], None] | None = None) -> dict[str, Any]:
+    """Run the protocol on ``spec.run_dir``'s last checkpoint; write eval.json, eval.csv and the
+    figures to ``spec.output_dir``; return the report. Bad input: one-line ValueError, before any
+    solver starts."""
+    from jaxsimrl.evaluation.foam_policy import load_foam_run
+
+    say = say or (lambda text: None)
+    spec.validate()
+    run = load_foam_run(spec.run_dir)
+    shapes = geometries(spec, run.foam)
+    baseline = baseline_from_csv(spec.baseline_grid) if spec.baseline_grid is not None else None
+    out = _make_output_dir(spec.output_dir)
+    started = time.monotonic()
+    if baseline is None:
+        first = next(iter(shapes))
+        say(f"no --baseline-grid: searching the best constant on a grid at V = {spec.velocities[0]:g} m/s, "
+            f"{first}")
+        grid_cfg = eval_config(run.foam, shapes[first], spec.mesh_scale, [TUTORIAL_DEFAULTS])
+        baseline = baseline_from_grid(spec, grid_cfg, spec.velocities[0], first, say)
+    say(f"best constant ({baseline.alpha_u:g}, {baseline.alpha_p:g}) from {baseline.source}")
+    controllers = make_controllers(run, baseline, spec.pool, spec.seed)
+    jobs = plan(list(shapes), spec.velocities, {k: c.repeats for k, c in controllers.items()}, spec.samples)
+    results = _run_plan(spec, run, shapes, jobs, controllers, baseline, on_result)
+    report = build_report(spec, run, baseline, shapes, results, time.monotonic() - started)
+    write_outputs(report, results, out)
+    return report
+
+
+def _run_plan(spec: EvalSpec, run: Any, shapes: dict[str, float | None], jobs: list[Job],
+              controllers: dict[str, Any], baseline: Baseline,
+              on_result: Callable[[EpisodeResult, int, int], None] | None) -> list[EpisodeResult]:
+    """Every job, one geometry (one case, one pool) after the other; results in plan order."""
+    from jaxsimrl.evaluation.foam_runner import run_episodes
+
+    results: list[EpisodeResult] = []
+    done = 0
+
+    def progress(result: EpisodeResult) -> None:
+        nonlocal done
+        done += 1
+        if on_result is not None:
+            on_result(result, done, len(jobs))
+
+    for name, height in shapes.items():
+        cfg = eval_config(run.foam, height, spec.mesh_scale, [baseline.factors, TUTORIAL_DEFAULTS])
+        mine = [j for j in jobs if j.geometry == name]
+        results += run_episodes(cfg, mine, controllers, spec.pool, progress)
+    return results
+
+
+def _make_output_dir(out: Path) -> Path:
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"--out {out}: exists and is not a directory")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise ValueError(f"--out {out}: cannot create it ({err.strerror})") from None
+    return out
+
+
+# ----- the report ------------------------------------------------------------------------------------
+def run_row(result: EpisodeResult, step_height: float | None) -> dict[str, Any]:
+    """One run as a flat record (eval.csv's row; eval.json's per-run entry)."""
+    cost = result.cost
+    return {
+        "controller": result.job.controller, "geometry": result.job.geometry, "step_height": step_height,
+        "velocity": result.job.velocity, "sample": result.job.sample, "outcome": result.outcome,
+        "cause": result.cause, "iterations": result.iterations, "wall_time_s": round(result.wall_time_s, 4),
+        "cpu_time_s": None if cost is None else cost.cpu_time_s,
+        "linear_iterations": None if cost is None else cost.total,
+        "p_linear_iterations": None if cost is None else cost.of("p"),
+        "steps": len(result.actions), "actions": result.actions,
+    }
+
+
+def stats(values: Sequence[float]) -> dict[str, float | int | None]:
+    """n, mean, std (population), min and max; None entries for an empty list."""
+    values = [float(v) for v in values if v is not None]
+    if not values:
+        return {"n": 0, "mean": None, "std": None, "min": None, "max": None}
+    mean = sum(values) / len(values)
+    std = math.sqrt(sum((v - mean) ** 2 for v in values) / len(values))
+    return {"n": len(values), "mean": mean, "std": std, "min": min(values), "max": max(values)}
+
+
+def cell_summary(rows: Sequence[dict[str, Any]], max_iterations: int) -> dict[str, Any]:
+    """Statistics of one (controller, geometry, velocity) cell.
+
+    ``iterations``, ``wall_time_s``, ``cpu_time_s`` and the linear-solver counts are over the runs that
+    converged; ``penalised_iterations`` counts every other run at ``max_iterations``, as the training
+    reward does (the return of a failed or truncated episode is -max_iterations).
+    """
+    converged = [r for r in rows if r["outcome"] == "converged"]
+    summary: dict[str, Any] = {"runs": list(rows), "outcomes": dict(Counter(r["outcome"] for r in rows)),
+                               "converged": len(converged)}
+    for key in ("iterations", "wall_time_s", "cpu_time_s", "linear_iterations", "p_linear_iterations"):
+        summary[key] = stats([r[key] for r in converged])
+    summary["penalised_iterations"] = stats(
+        [r["iterations"] if r["outcome"] == "converged" else max_iterations for r in rows])
+    return summary
+
+
+def build_report(spec: EvalSpec, run: Any, baseline: Baseline, shapes: dict[str, float | None],
+                 results: Sequence[EpisodeResult], wall_time_s: float) -> dict[str, Any]:
+    """eval.json: the protocol, the baseline, and per controller -> geometry -> velocity the runs and
+    their statistics."""
+    from jaxsimrl.envs.foam_config import foam_config_to_json
+
+    table: dict[str, Any] = {c: {g: {} for g in shapes} for c in CONTROLLERS}
+    for controller in CONTROLLERS:
+        for geometry, height in shapes.items():
+            for velocity in spec.velocities:
+                rows = [run_row(r, height) for r in results if r.job.controller == controller
+                        and r.job.geometry == geometry and r.job.velocity == float(velocity)]
+                table[controller][geometry][f"{velocity:g}"] = cell_summary(rows, run.foam.max_iterations)
+    case = eval_config(run.foam, None, spec.mesh_scale, [baseline.factors, TUTORIAL_DEFAULTS])
+    return {
+        "run_dir": str(run.path), "checkpoint_step": run.checkpoint_step, "checkpoint_update": run.update,
+        "seed": spec.seed, "samples": spec.samples, "pool": spec.pool,
+        "velocities": [float(v) for v in spec.velocities], "geometries": shapes,
+        "mesh_scale": spec.mesh_scale, "criterion": dict(TEST_CONVERGENCE),
+        "case": {k: v for k, v in foam_config_to_json(case).items()
+                 if k not in CASE_OMITTED},
+        "controllers": {
+            "learned_deterministic": "the policy's mean action, one run per cell",
+            "learned_stochastic": f"actions sampled from the policy, {spec.samples} runs per cell",
+            "best_constant": f"constant ({baseline.alpha_u:g}, {baseline.alpha_p:g}), one run per cell",
+            "tutorial_defaults": f"constant {TUTORIAL_DEFAULTS} (U, p), k/omega as the case, one run per "
+                                 f"cell",
+            "random": f"uniform in the action box at every step, {spec.samples} runs per cell",
+        },
+        "action_box": {"low": list(run.foam.action_low), "high": list(run.foam.action_high)},
+        "baseline": {"alpha_u": baseline.alpha_u, "alpha_p": baseline.alpha_p, "source": baseline.source,
+                     "grid_iterations": baseline.grid_iterations},
+        "results": table,
+        "wall_time_s": wall_time_s,
+    }
+
+
+def write_outputs(report: dict[str, Any], results: Sequence[EpisodeResult], out: Path) -> None:
+    """eval.json, eval.csv and the figures, each written atomically."""
+    from jaxsimrl.evaluation import foam_plots
+
+    atomic_write_json(out / EVAL_JSON, report)
+    heights = report["geometries"]
+    atomic_write_text(out / EVAL_CSV, _csv([run_row(r, heights[r.job.geometry]) for r in results]))
+    foam_plots.plot_all(report, out)
+
+
+def _csv(rows: Sequence[dict[str, Any]]) -> str:
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=CSV_COLUMNS, lineterminator="\n")
+    writer.writeheader()
+    for row in rows:
+        writer.writerow({k: json.dumps(v) if k == "actions" else ("" if v is None else v)
+                         for k, v in row.items()})
+    return buffer.getvalue()
