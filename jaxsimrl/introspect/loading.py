@@ -25,7 +25,7 @@ import numpy as np
 from jaxsimrl.agents.ppo import distribution
 from jaxsimrl.agents.ppo.acting import forward, sample_batch
 from jaxsimrl.agents.ppo.config import PPOConfig
-from jaxsimrl.agents.ppo.networks import Carry
+from jaxsimrl.agents.ppo.networks import Carry, make_network
 from jaxsimrl.agents.ppo.normalizer import NormalizerState
 from jaxsimrl.agents.ppo.policy import Policy, PolicyParams
 from jaxsimrl.introspect.envs import EnvSpec, env_spec, names_for
@@ -54,7 +54,6 @@ class LoadedPolicy:
         self.action_names = names_for(spec.action_names, self.action_dim, "action")
         self.recurrent = config.network == "lstm"
         self._key = jax.random.PRNGKey(seed)  # the stream stochastic calls draw from when given no key
-        self._forward = jax.jit(functools.partial(forward, self.policy.network.apply, config))
 
     @classmethod
     def from_params(cls, config: PPOConfig, state_or_params: Any, env: Any = None, env_params: Any = None,
@@ -136,7 +135,8 @@ class LoadedPolicy:
         else:
             carry = jax.tree.map(lambda leaf: jnp.asarray(leaf)[None] if single else jnp.asarray(leaf), state)
             starts = jnp.zeros(size, bool)
-        return self._forward(self.params.params, self.params.normalizer, carry, batch, starts)
+        acting = self.params
+        return _forward(self.config, self.action_dim, acting.params, acting.normalizer, carry, batch, starts)
 
     def _next_key(self, key: jax.Array | int | None) -> jax.Array:
         if key is None:
@@ -152,6 +152,13 @@ class LoadedPolicy:
     @staticmethod
     def _carry_out(carry: Carry, single: bool) -> Carry:
         return jax.tree.map(lambda leaf: leaf[0], carry) if single else carry
+
+
+@functools.partial(jax.jit, static_argnums=(0, 1))
+def _forward(config: PPOConfig, action_dim: int, params: Any, normalizer: NormalizerState, carry: Carry,
+             obs: jax.Array, starts: jax.Array) -> tuple[Any, ...]:
+    """``forward`` compiled once per (config, shapes), shared by every LoadedPolicy of that config."""
+    return forward(make_network(config, action_dim).apply, config, params, normalizer, carry, obs, starts)
 
 
 def load_policy(run_dir: str | Path, checkpoint: int | None = None, seed: int = 0) -> LoadedPolicy:
