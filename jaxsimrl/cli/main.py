@@ -13,7 +13,7 @@ import sys
 from jaxsimrl.cli.errors import OneLineArgumentParser, UsageError
 
 # Modules that contribute subcommands.
-SUBCOMMAND_MODULES = ("jaxsimrl.cli.lorenz", "jaxsimrl.cli.foam")
+SUBCOMMAND_MODULES = ("jaxsimrl.cli.lorenz", "jaxsimrl.cli.foam", "jaxsimrl.cli.plot")
 
 
 def build_parser() -> OneLineArgumentParser:

@@ -51,3 +51,51 @@ def column(rows: list[Row], name: str) -> np.ndarray:
     """One metric over the updates as floats (NaN where a row lacks it or holds null)."""
     values = [row.get(name) for row in rows]
     return np.array([math.nan if v is None else float(v) for v in values])
+
+
+def read_episode_iterations(path: Path) -> np.ndarray | None:
+    """The ``iterations`` column of a foam run's episodes.csv (one row per episode), if it has one."""
+    import csv
+
+    if not path.is_file():
+        return None
+    with path.open(newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    if not rows or "iterations" not in rows[0]:
+        return None
+    return np.array([float(row["iterations"] or math.nan) for row in rows])
+
+
+def plot_training_curves(rows: list[Row], path: str | Path, title: str, window: int = 5,
+                         episode_iterations: np.ndarray | None = None) -> None:
+    """Return, losses, entropy and KL against env steps (plus iterations per episode for a foam run)
+    as one PNG at ``path``."""
+    from matplotlib.figure import Figure
+
+    from jaxsimrl.evaluation.plots import save_figure
+
+    panels = 4 + (episode_iterations is not None)
+    fig = Figure(figsize=(4.2 * panels, 3.8), layout="constrained")
+    axes = fig.subplots(1, panels)
+    steps = column(rows, "env_steps")
+    curve = episode_curve(rows, window)
+    axes[0].plot(steps, column(rows, "mean_episode_return"), ".", color="0.6", ms=4, label="per update")
+    axes[0].plot(curve.env_steps, curve.moving_average, color="tab:blue", label=f"{window}-episode average")
+    axes[0].set_ylabel("mean episode return")
+    axes[0].legend(fontsize=8)
+    groups = (("policy_loss", "value_loss"), ("entropy",), ("approx_kl", "clip_fraction"))
+    for ax, names in zip(axes[1:4], groups, strict=True):
+        for name in names:
+            ax.plot(steps, column(rows, name), label=name)
+        ax.legend(fontsize=8)
+    for ax in axes[:4]:
+        ax.set_xlabel("env steps")
+        ax.ticklabel_format(axis="x", style="sci", scilimits=(0, 0))
+        ax.grid(alpha=0.3)
+    if episode_iterations is not None:
+        axes[4].plot(np.arange(1, len(episode_iterations) + 1), episode_iterations, ".-", ms=3)
+        axes[4].set_xlabel("episode")
+        axes[4].set_ylabel("solver iterations")
+        axes[4].grid(alpha=0.3)
+    fig.suptitle(title)
+    save_figure(fig, path)

@@ -79,6 +79,7 @@ class Session:
     checkpoints: Checkpoints
     meta: dict[str, Any]  # JSON stored with every checkpoint (the run's config record)
     summary_extra: dict[str, Any] = field(default_factory=dict)  # copied into summary.json
+    tensorboard: Any = None  # a TensorBoardWriter (runs/tensorboard.py) that gets the rows too, or None
 
     def write_summary(self) -> dict[str, Any]:
         """Write summary.json from the metrics rows so far and return it."""
@@ -107,6 +108,8 @@ def train(session: Session, state: Any, done: int, progress: TrainingProgress,
         done += count
         with interrupts_deferred():
             log.extend(rows)
+            if session.tensorboard is not None:
+                session.tensorboard.write_rows(rows)
             session.checkpoints.save(done, state, {**session.meta, "update": done, "env_steps": log.env_steps,
                                                    "wall_time_s": log.wall_time_s})
             session.write_summary()
