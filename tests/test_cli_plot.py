@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import math
 import struct
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,12 +15,21 @@ from test_cli_lorenz import TINY_FLAGS, run_cli
 from jaxsimrl.cli.main import main
 from jaxsimrl.evaluation.curves import episode_curve
 
+_TINY_RUN: list[Path] = []
+
+
+def tiny_run(tmp_path_factory) -> Path:
+    """One tiny train-lorenz run with --tensorboard for the whole session (test_introspect reads it too)."""
+    if not _TINY_RUN:
+        path = tmp_path_factory.mktemp("tiny") / "run"
+        assert main(["train-lorenz", *TINY_FLAGS, "--tensorboard", "--out", str(path)]) == 0
+        _TINY_RUN.append(path)
+    return _TINY_RUN[0]
+
 
 @pytest.fixture(scope="module")
 def run(tmp_path_factory):
-    path = tmp_path_factory.mktemp("plot") / "run"
-    assert main(["train-lorenz", *TINY_FLAGS, "--tensorboard", "--out", str(path)]) == 0
-    return path
+    return tiny_run(tmp_path_factory)
 
 
 def rows_of(run):

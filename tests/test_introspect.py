@@ -3,6 +3,7 @@ distribution, values, checkpoint choice, one-line errors for runs it cannot load
 
 from __future__ import annotations
 
+import functools
 import json
 import shutil
 
@@ -11,13 +12,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from test_cli_lorenz import TINY_FLAGS
+from test_cli_plot import tiny_run
 
 import jaxsimrl
 from jaxsimrl.agents.ppo import PolicyParams, PPOConfig, make_train
 from jaxsimrl.agents.ppo.networks import initial_carry, make_network
 from jaxsimrl.agents.ppo.normalizer import batch_stats
-from jaxsimrl.cli.main import main
 from jaxsimrl.envs.lorenz import Lorenz
 from jaxsimrl.introspect import LoadedPolicy, load_policy
 from jaxsimrl.runs.checkpoint import Checkpoints
@@ -31,9 +31,7 @@ LSTM = PPOConfig(network="lstm", lstm_size=8, num_envs=2, steps_per_update=64, s
 
 @pytest.fixture(scope="module")
 def run(tmp_path_factory):
-    path = tmp_path_factory.mktemp("introspect") / "run"
-    assert main(["train-lorenz", *TINY_FLAGS, "--out", str(path)]) == 0  # checkpoints 4 and 5 are kept
-    return path
+    return tiny_run(tmp_path_factory)  # 5 updates in chunks of 2: checkpoints 4 and 5 are kept
 
 
 @pytest.fixture(scope="module")
@@ -48,10 +46,20 @@ def lstm_policy():
 
 def fresh_params(config: PPOConfig, key: jax.Array) -> PolicyParams:
     """Initial network parameters, and observation statistics of a few reset observations."""
-    network = make_network(config, 3)
-    obs = jax.vmap(Lorenz().reset, in_axes=(0, None))(jax.random.split(key, 64), Lorenz().default_params())[0]
-    params = network.init(key, initial_carry(config, 1), obs[:1][None], jnp.ones((1, 1), bool))
-    return PolicyParams(params, batch_stats(obs))
+    return _fresh_params(config)(key)
+
+
+@functools.cache
+def _fresh_params(config: PPOConfig):
+    env, network = Lorenz(), make_network(config, 3)
+
+    @jax.jit  # one compilation instead of many small eager ones
+    def init(key: jax.Array) -> PolicyParams:
+        obs = jax.vmap(env.reset, in_axes=(0, None))(jax.random.split(key, 64), env.default_params())[0]
+        params = network.init(key, initial_carry(config, 1), obs[:1][None], jnp.ones((1, 1), bool))
+        return PolicyParams(params, batch_stats(obs))
+
+    return init
 
 
 def one_line_error(call) -> str:
@@ -117,7 +125,7 @@ def test_stochastic_actions_follow_their_key(policy):
 def test_distribution_is_the_squashed_gaussian_in_env_units(policy):
     dist = policy.distribution(OBS)
     np.testing.assert_allclose(dist.median, policy.act(OBS)[0], rtol=1e-6)
-    reference = distrax.Transformed(
+    reference = distrax.Transformed(  # distrax's own squashed Gaussian: tanh, then onto [low, high]
         distrax.MultivariateNormalDiag(dist.loc, dist.scale),
         distrax.Block(distrax.Chain([distrax.ScalarAffine(policy.action_low, (policy.action_high
                                                                                - policy.action_low) / 2),
@@ -185,7 +193,7 @@ def test_rollout_records_what_the_policy_did(lstm_policy):
     np.testing.assert_allclose(lstm_policy.value(record["obs"][1, 0]), record["value"][1, 0], rtol=1e-5)
     again = lstm_policy.rollout(params, steps=30, episodes=2, seed=1)
     np.testing.assert_array_equal(again["action"], record["action"])
-    random_starts = lstm_policy.rollout(steps=5, episodes=2, seed=1)["state.xyz"][:, 0]
+    random_starts = lstm_policy.rollout(steps=30, episodes=2, seed=1)["state.xyz"][:, 0]  # compiled above
     assert not np.allclose(random_starts[0], random_starts[1])
     assert "steps" in one_line_error(lambda: lstm_policy.rollout(steps=0))
 

@@ -9,6 +9,8 @@ included, so it integrates to one over the box.
 
 from __future__ import annotations
 
+import functools
+
 import jax
 import jax.numpy as jnp
 from flax import struct
@@ -34,18 +36,27 @@ class ActionDistribution:
 
     def sample(self, key: jax.Array, shape: tuple[int, ...] = ()) -> jax.Array:
         """Actions of shape ``shape + loc.shape``, in env units."""
-        u = self.loc + self.scale * jax.random.normal(key, shape + self.loc.shape)
-        return distribution.to_box(u, self.low, self.high)
+        return _sample(self, key, tuple(shape))
 
     def log_prob(self, action: jax.Array) -> jax.Array:
         """log density of ``action`` (..., A) in env units, summed over components."""
-        half = 0.5 * (self.high - self.low)
-        y = jnp.clip((action - self.low) / half - 1.0, -1.0 + _EDGE, 1.0 - _EDGE)
-        u = jnp.arctanh(y)
-        gaussian = jax.scipy.stats.norm.logpdf(u, self.loc, self.scale)
-        return jnp.sum(gaussian - jnp.log1p(-jnp.square(y)) - jnp.log(half), axis=-1)
+        return _log_prob(self, jnp.asarray(action, jnp.float32))
 
     def mean_and_std(self, key: jax.Array, samples: int = 4096) -> tuple[jax.Array, jax.Array]:
         """Monte Carlo mean and standard deviation of the action in env units (no closed form)."""
         draws = self.sample(key, (samples,))
         return draws.mean(axis=0), draws.std(axis=0)
+
+
+@functools.partial(jax.jit, static_argnums=2)
+def _sample(dist: ActionDistribution, key: jax.Array, shape: tuple[int, ...]) -> jax.Array:
+    u = dist.loc + dist.scale * jax.random.normal(key, shape + dist.loc.shape)
+    return distribution.to_box(u, dist.low, dist.high)
+
+
+@jax.jit
+def _log_prob(dist: ActionDistribution, action: jax.Array) -> jax.Array:
+    half = 0.5 * (dist.high - dist.low)
+    y = jnp.clip((action - dist.low) / half - 1.0, -1.0 + _EDGE, 1.0 - _EDGE)
+    gaussian = jax.scipy.stats.norm.logpdf(jnp.arctanh(y), dist.loc, dist.scale)
+    return jnp.sum(gaussian - jnp.log1p(-jnp.square(y)) - jnp.log(half), axis=-1)
