@@ -54,6 +54,7 @@ class LoadedPolicy:
         self.action_names = names_for(spec.action_names, self.action_dim, "action")
         self.recurrent = config.network == "lstm"
         self._key = jax.random.PRNGKey(seed)  # the stream stochastic calls draw from when given no key
+        self._rollout_cache: dict[tuple[int, int, bool], Any] = {}  # (steps, episodes, deterministic) -> jit
 
     @classmethod
     def from_params(cls, config: PPOConfig, state_or_params: Any, env: Any = None, env_params: Any = None,
@@ -142,7 +143,7 @@ class LoadedPolicy:
         if key is None:
             self._key, key = jax.random.split(self._key)
             return key
-        return jax.random.PRNGKey(key) if isinstance(key, int) else key
+        return jax.random.PRNGKey(int(key)) if isinstance(key, int | np.integer) else key
 
     @staticmethod
     def _answer(values: jax.Array, single: bool) -> np.ndarray:

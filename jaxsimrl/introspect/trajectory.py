@@ -46,7 +46,7 @@ def rollout(policy: Any, env_params: Any = None, steps: int | None = None, episo
 
 def _compiled(policy: Any, steps: int, episodes: int, deterministic: bool) -> Any:
     """The jitted scan for these sizes, cached on the policy (one compilation per shape)."""
-    cache = policy.__dict__.setdefault("_rollouts", {})
+    cache = policy._rollout_cache
     if (steps, episodes, deterministic) not in cache:
         cache[steps, episodes, deterministic] = jax.jit(
             lambda acting, env_params, key: _scan(policy, acting, env_params, key, steps, episodes,
