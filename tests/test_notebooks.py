@@ -17,6 +17,7 @@ def test_there_are_notebooks():
     assert any(path.name == "lorenz_policy.ipynb" for path in NOTEBOOKS)
 
 
+@pytest.mark.slow  # a fresh kernel compiles the paper's LSTM trainer: about a minute
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=[path.stem for path in NOTEBOOKS])
 def test_notebook_is_clean_and_runs(path, tmp_path, monkeypatch):
     notebook = nbformat.read(path, as_version=4)
