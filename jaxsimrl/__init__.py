@@ -1,10 +1,13 @@
 """jaxsimrl: deep RL (pure-JAX PPO) for controlling scientific simulations.
 
 Importing the package stays light (no JAX): it only registers the gymnasium id
-``jaxsimrl/Lorenz-v0`` with a string entry point, so JAX loads when the env is first made.
+``jaxsimrl/Lorenz-v0`` with a string entry point, so JAX loads when the env is first made, and
+``jaxsimrl.load_policy`` imports :mod:`jaxsimrl.introspect` on first use.
 """
 
 from __future__ import annotations
+
+from typing import Any
 
 import gymnasium
 
@@ -14,3 +17,11 @@ if LORENZ_ENV_ID not in gymnasium.registry:  # re-imports (importlib.reload) mus
     # max_episode_steps=None: the env terminates its own episodes after LorenzParams.episode_steps.
     gymnasium.register(id=LORENZ_ENV_ID, entry_point="jaxsimrl.envs.gym_lorenz:LorenzGymEnv",
                        max_episode_steps=None)
+
+
+def __getattr__(name: str) -> Any:
+    if name == "load_policy":  # lazily: the introspection API imports JAX
+        from jaxsimrl.introspect.loading import load_policy
+
+        return load_policy
+    raise AttributeError(f"module 'jaxsimrl' has no attribute {name!r}")

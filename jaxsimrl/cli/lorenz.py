@@ -67,6 +67,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                        "(default: runs/lorenz-<UTC timestamp>)")
     train.add_argument("--resume", metavar="RUN_DIR", help="continue RUN_DIR from its last checkpoint with "
                        "its saved config; only --total-steps may be given (to raise it)")
+    train.add_argument("--tensorboard", action="store_true", help="also write the metrics as TensorBoard "
+                       "event files to RUN_DIR/tensorboard/")
     train.add_argument("--print-config", action="store_true", help="print the resolved PPOConfig as JSON "
                        "(every field, defaults included) and exit without training")
     train.set_defaults(func=run_train)
@@ -119,6 +121,7 @@ def run_train(args: argparse.Namespace, on_chunk: Any = None) -> int:
     from jaxsimrl.runs.checkpoint import Checkpoints
     from jaxsimrl.runs.progress import TrainingProgress
     from jaxsimrl.runs.run_dir import RunDir
+    from jaxsimrl.runs.tensorboard import tensorboard_log
     from jaxsimrl.runs.training import Session, train
 
     trainer = lorenz_trainer(plan.config)
@@ -127,12 +130,13 @@ def run_train(args: argparse.Namespace, on_chunk: Any = None) -> int:
     except ValueError as err:
         raise UsageError(str(err)) from None
     try:
-        with Checkpoints(run.checkpoints) as checkpoints:
+        with Checkpoints(run.checkpoints) as checkpoints, tensorboard_log(run.path, args.tensorboard) as tb:
             state, done, log = _starting_point(plan, trainer, run, checkpoints)
             record = _config_record(plan)
             run.write_config(record)
             extra = {"run_dir": str(run.path), "seed": plan.seed, "network": plan.config.network}
-            session = Session(run, trainer, log, checkpoints, meta={"config": record}, summary_extra=extra)
+            session = Session(run, trainer, log, checkpoints, meta={"config": record}, summary_extra=extra,
+                              tensorboard=tb)
             total = trainer.num_updates * plan.config.steps_per_update
             with TrainingProgress(total, log.env_steps) as progress:
                 train(session, state, done, progress, on_chunk)

@@ -14,7 +14,7 @@ from jaxsimrl.cli.errors import OneLineArgumentParser, UsageError
 
 # Modules that contribute subcommands.
 SUBCOMMAND_MODULES = ("jaxsimrl.cli.lorenz", "jaxsimrl.cli.foam", "jaxsimrl.cli.train_foam",
-                      "jaxsimrl.cli.eval_foam")
+                      "jaxsimrl.cli.eval_foam", "jaxsimrl.cli.plot")
 
 
 def build_parser() -> OneLineArgumentParser:

@@ -95,6 +95,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--out", metavar="DIR", help="run directory to create (default runs/foam-<UTC timestamp>)")
     p.add_argument("--resume", metavar="RUN_DIR", help="continue RUN_DIR from its last checkpoint; only "
                    "--episodes (raised), --pool, --backend and --ray-address may be given")
+    p.add_argument("--tensorboard", action="store_true", help="also write the metrics as TensorBoard event "
+                   "files to RUN_DIR/tensorboard/")
     p.add_argument("--print-config", action="store_true", help="print the resolved config and exit")
     p.set_defaults(func=run_train_foam)
 
@@ -239,7 +241,7 @@ def run_train_foam(args: argparse.Namespace, on_chunk: Any = None) -> int:
     except ValueError as err:
         raise UsageError(str(err)) from None
     try:
-        summary = _train(plan, run, on_chunk)
+        summary = _train(plan, run, on_chunk, args.tensorboard)
     except (CaseError, OpenFOAMNotFoundError) as err:
         _drop_if_empty(run, plan)
         raise UsageError(str(err)) from None
@@ -254,7 +256,7 @@ def run_train_foam(args: argparse.Namespace, on_chunk: Any = None) -> int:
     return 0
 
 
-def _train(plan: FoamPlan, run: Any, on_chunk: Any) -> dict[str, Any]:
+def _train(plan: FoamPlan, run: Any, on_chunk: Any, tensorboard: bool = False) -> dict[str, Any]:
     """Build the pool and the trainer, restore or start, train; returns the final summary."""
     import jax
 
@@ -264,6 +266,7 @@ def _train(plan: FoamPlan, run: Any, on_chunk: Any) -> dict[str, Any]:
     from jaxsimrl.runs.episodes import EpisodeLog
     from jaxsimrl.runs.progress import FoamProgress
     from jaxsimrl.runs.run_dir import MetricsLog
+    from jaxsimrl.runs.tensorboard import tensorboard_log
     from jaxsimrl.runs.training import Session, train
 
     done = run.checkpoint_steps()[-1] if plan.resume else 0
@@ -276,7 +279,7 @@ def _train(plan: FoamPlan, run: Any, on_chunk: Any) -> dict[str, Any]:
                        on_episode=lambda env_id, info: episodes.add(env_id, cursor["update"], info))
     try:
         trainer = make_train(plan.ppo, vec=vec, devices=jax.devices()[:1])
-        with Checkpoints(run.checkpoints) as checkpoints:
+        with Checkpoints(run.checkpoints) as checkpoints, tensorboard_log(run.path, tensorboard) as tb:
             key = jax.random.PRNGKey(plan.seed)
             if plan.resume:
                 state = _restored(trainer, checkpoints, key, done)
@@ -290,7 +293,7 @@ def _train(plan: FoamPlan, run: Any, on_chunk: Any) -> dict[str, Any]:
             session = Session(run, _HostTrainer(trainer, vec, episodes, cursor), log, checkpoints,
                               meta={"config": record}, summary_extra={"run_dir": str(run.path)},
                               before_checkpoint=lambda _: episodes.flush(),
-                              summary_hook=lambda s: foam_summary(s, episodes, plan))
+                              summary_hook=lambda s: foam_summary(s, episodes, plan), tensorboard=tb)
             with FoamProgress(plan.episodes, episodes, plan.pool, log) as progress:
                 train(session, state, done, progress, on_chunk,
                       until=lambda: len(episodes.rows) >= plan.episodes)

@@ -95,42 +95,21 @@ def compare(env: Lorenz, params: LorenzParams, act: ActFn, carry: Any, episodes:
     return report, agent, base
 
 
-def load_trained(run_path: Path) -> tuple[Any, Any, dict[str, Any]]:
-    """(policy, trained RunnerState, checkpoint record) of the last checkpoint of a train-lorenz run."""
-    from jaxsimrl.agents.ppo import PPOConfig, make_policy, make_train
-    from jaxsimrl.runs.checkpoint import Checkpoints
-    from jaxsimrl.runs.run_dir import RunDir
-
-    run = RunDir.existing(run_path)
-    record = run.read_config()
-    config = PPOConfig.from_dict(record["ppo"])
-    env = Lorenz()
-    with Checkpoints(run.checkpoints, writable=False) as checkpoints:
-        step = checkpoints.latest_step()  # fail fast, before anything is compiled
-        # The structure of a fresh state without computing it, all on one device: acting is unsharded.
-        abstract = jax.eval_shape(make_train(config, env).init, jax.random.PRNGKey(0))
-        device = jax.sharding.SingleDeviceSharding(jax.devices()[0])
-        abstract = jax.tree.map(lambda leaf: jax.ShapeDtypeStruct(leaf.shape, leaf.dtype, sharding=device),
-                                abstract)
-        state, meta = checkpoints.restore(abstract, step)
-    return make_policy(config, env), state, meta
-
-
 def evaluate_run(run_path: Path, episodes: int = 32, stochastic: bool = False, seed: int = 0
                  ) -> dict[str, Any]:
     """eval-lorenz: write RUN_DIR/eval.json and RUN_DIR/eval_trajectory.png; return the report."""
     from jaxsimrl.evaluation.plots import plot_trajectories
+    from jaxsimrl.introspect.loading import load_policy
 
-    policy, state, _ = load_trained(run_path)
+    loaded = load_policy(run_path)
+    policy = loaded.policy
 
     def act(obs: jax.Array, carry: Any, starts: jax.Array, key: jax.Array) -> tuple[jax.Array, Any]:
-        return policy.act(state, obs, carry, starts, key, deterministic=not stochastic)
+        return policy.act(loaded.params, obs, carry, starts, key, deterministic=not stochastic)
 
     env, params = Lorenz(), LorenzParams()
     report, agent, base = compare(env, params, act, policy.initial_carry(episodes + 1), episodes, seed)
-    update = int(state.update_step)  # the state's own count, whatever the checkpoint's record says
-    report.update(stochastic=stochastic, checkpoint_update=update,
-                  trained_env_steps=update * policy.config.steps_per_update)
+    report.update(stochastic=stochastic, checkpoint_update=loaded.update, trained_env_steps=loaded.env_steps)
     plot_trajectories(Path(run_path) / PLOT_FILE, agent.xyz[0], base.xyz[0], agent.speed[0], base.speed[0],
                       dt=float(params.dt), v_threshold=float(params.v_threshold), fixed_point=P_MINUS)
     atomic_write_json(Path(run_path) / EVAL_FILE, report)

@@ -34,8 +34,13 @@ def plot_trajectories(path: Path, controlled_xyz: np.ndarray, uncontrolled_xyz: 
     start = ", ".join(f"{v:g}" for v in np.round(controlled_xyz[0], 3))
     fig.suptitle(f"Lorenz system, (sigma, rho, beta) = (10, 20, 8/3), start ({start})")
     fig.tight_layout()
+    save_figure(fig, path)
+
+
+def save_figure(fig: plt.Figure, path: str | Path, dpi: int = 120) -> None:
+    """Write ``fig`` to ``path`` as PNG, atomically, and close it."""
     buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=120)
+    fig.savefig(buffer, format="png", dpi=dpi)
     plt.close(fig)
     atomic_write_bytes(path, buffer.getvalue())
 

@@ -83,6 +83,21 @@ class Checkpoints:
             step, {STATE_ITEM: ocp.args.StandardRestore(abstract_state), META_ITEM: ocp.args.JsonRestore()})
         return restored[STATE_ITEM], dict(restored[META_ITEM])
 
+    def restore_as_saved(self, step: int | None = None, device: jax.Device | None = None
+                         ) -> tuple[Any, dict[str, Any]]:
+        """Checkpoint ``step`` (default: the latest) as saved: nested dicts of arrays, all on ``device``
+        (default: the first local one), whatever the run's device mesh was. For readers that need only
+        part of a state (acting needs the parameters and the normaliser), or a state of an older layout.
+        Returns ``(tree, meta)``."""
+        step = self.latest_step() if step is None else step
+        metadata = self._item_metadata(step, STATE_ITEM, META_ITEM)
+        placed = jax.sharding.SingleDeviceSharding(device or jax.devices()[0])
+        abstract = jax.tree.map(lambda leaf: jax.ShapeDtypeStruct(leaf.shape, leaf.dtype, sharding=placed),
+                                metadata[STATE_ITEM].tree)
+        restored = self._restore(
+            step, {STATE_ITEM: ocp.args.StandardRestore(abstract), META_ITEM: ocp.args.JsonRestore()})
+        return restored[STATE_ITEM], dict(restored[META_ITEM])
+
     # Everything below is checked before orbax restores anything: a failed orbax restore leaves
     # orphaned coroutines that print tracebacks at exit, which would bury the one-line error.
     def _item_metadata(self, step: int, *items: str) -> Any:

@@ -85,6 +85,7 @@ class Session:
     before_checkpoint: ChunkHook | None = None
     # Further summary.json entries computed after every chunk (may override "complete").
     summary_hook: Callable[[dict[str, Any]], dict[str, Any]] | None = None
+    tensorboard: Any = None  # a TensorBoardWriter (runs/tensorboard.py) that gets the rows too, or None
 
     def write_summary(self) -> dict[str, Any]:
         """Write summary.json from the metrics rows so far and return it."""
@@ -108,6 +109,8 @@ def _run_and_save(session: Session, state: Any, done: int) -> tuple[Any, int, li
     rows = chunk_rows(metrics, done + 1, count, log.env_steps, log.wall_time_s, chunk_time)
     done += count
     log.extend(rows)
+    if session.tensorboard is not None:
+        session.tensorboard.write_rows(rows)
     if session.before_checkpoint is not None:
         session.before_checkpoint(done)
     session.checkpoints.save(done, state, {**session.meta, "update": done, "env_steps": log.env_steps,

@@ -1,7 +1,8 @@
 """Pure-JAX PPO (PureJaxRL-style train loop, Brax-style module split).
 
 config.py (PPOConfig) | networks.py (actor-critic, LSTM with episode resets) | distribution.py (Gaussian
-squashed into the action box) | normalizer.py (running obs statistics) | rollout.py (experience, RunnerState)
+squashed into the action box) | normalizer.py (running obs statistics) | acting.py (the network's one
+forward step on raw observations, used by Policy.act and load_policy) | rollout.py (experience, RunnerState)
 | losses.py (GAE, PPO loss) | learner.py (epochs x minibatches) | train.py (make_train, devices) |
 policy.py (make_policy) | evaluate.py (scan_episodes, episode_returns over random initial states).
 """

@@ -18,10 +18,10 @@ import numpy as np
 from flax import struct
 
 from jaxsimrl.agents.ppo import distribution
+from jaxsimrl.agents.ppo.acting import forward, sample_batch
 from jaxsimrl.agents.ppo.config import PPOConfig
 from jaxsimrl.agents.ppo.networks import Carry, initial_carry, make_network
 from jaxsimrl.agents.ppo.normalizer import NormalizerState
-from jaxsimrl.agents.ppo.rollout import observe
 
 
 @struct.dataclass
@@ -48,14 +48,9 @@ class Policy:
     def act(self, state_or_params: Any, obs: jax.Array, carry: Carry, done: jax.Array, key: jax.Array,
             deterministic: bool = True) -> tuple[jax.Array, Carry]:
         """Actions (B, action_dim) inside the box and the next carry."""
-        obs = observe(self.config, state_or_params.normalizer, obs)
-        carry, mean, log_std, _ = self.network.apply(state_or_params.params, carry, obs[None], done[None])
-        mean = mean[0]
-        if deterministic:
-            u = mean
-        else:
-            keys = jax.random.split(key, mean.shape[0])
-            u, _ = jax.vmap(distribution.sample, in_axes=(0, 0, None))(keys, mean, log_std)
+        carry, mean, log_std, _ = forward(self.network.apply, self.config, state_or_params.params,
+                                          state_or_params.normalizer, carry, obs, done)
+        u = mean if deterministic else sample_batch(jax.random.split(key, mean.shape[0]), mean, log_std)[0]
         return distribution.to_box(u, self.low, self.high), carry
 
 

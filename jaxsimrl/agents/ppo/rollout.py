@@ -21,8 +21,8 @@ import jax.numpy as jnp
 from flax import struct
 
 from jaxsimrl.agents.ppo import distribution
-from jaxsimrl.agents.ppo.config import PPOConfig
-from jaxsimrl.agents.ppo.normalizer import NormalizerState, normalize
+from jaxsimrl.agents.ppo.acting import forward, observe, sample_batch
+from jaxsimrl.agents.ppo.normalizer import NormalizerState
 
 
 @struct.dataclass
@@ -91,25 +91,18 @@ def local_keys(ctx: RolloutContext, key: jax.Array) -> jax.Array:
     return local_slice(ctx, jax.random.split(key, ctx.config.num_envs))
 
 
-def observe(config: PPOConfig, normalizer: NormalizerState, obs: jax.Array) -> jax.Array:
-    """What the network sees, in training and when acting: the (optionally) normalised observation."""
-    if not config.normalize_obs:
-        return obs
-    return normalize(normalizer, obs, config.obs_clip, config.obs_std_floor)
-
-
 def _env_step(ctx: RolloutContext, runner: RunnerState, key: jax.Array
               ) -> tuple[RunnerState, Transition, EpisodeStats]:
     act_key, step_key, reset_key = jax.random.split(key, 3)
-    obs = observe(ctx.config, runner.normalizer, runner.obs)
-    carry, mean, log_std, value = ctx.apply_fn(runner.params, runner.carry, obs[None], runner.starts[None])
-    sample = jax.vmap(distribution.sample, in_axes=(0, 0, None))
-    u, log_prob = sample(local_keys(ctx, act_key), mean[0], log_std)
+    obs = observe(ctx.config, runner.normalizer, runner.obs)  # stored: the update replays what was seen
+    carry, mean, log_std, value = forward(ctx.apply_fn, ctx.config, runner.params, runner.normalizer,
+                                          runner.carry, runner.obs, runner.starts)
+    u, log_prob = sample_batch(local_keys(ctx, act_key), mean, log_std)
     action = distribution.to_box(u, ctx.low, ctx.high)
     env_keys = jnp.stack([local_keys(ctx, step_key), local_keys(ctx, reset_key)], axis=1)
     step = ctx.vec.step(env_keys, runner.env_state, action)
     done = step.terminated | step.truncated
-    transition = Transition(obs, runner.obs, runner.starts, u, log_prob, value[0],
+    transition = Transition(obs, runner.obs, runner.starts, u, log_prob, value,
                             step.reward * ctx.config.reward_scale, step.terminated, step.truncated,
                             _bootstrap_value(ctx, runner, carry, step))
 
@@ -149,8 +142,7 @@ def collect(ctx: RolloutContext, runner: RunnerState, key: jax.Array
 def critic_value(ctx: RolloutContext, params: Any, normalizer: NormalizerState, carry: Any,
                  raw_obs: jax.Array, starts: jax.Array) -> jax.Array:
     """V(raw_obs) of every local env: one network step from ``carry`` (the carry it leaves is dropped)."""
-    obs = observe(ctx.config, normalizer, raw_obs)
-    return ctx.apply_fn(params, carry, obs[None], starts[None])[3][0]
+    return forward(ctx.apply_fn, ctx.config, params, normalizer, carry, raw_obs, starts)[3]
 
 
 def _bootstrap_value(ctx: RolloutContext, runner: RunnerState, carry: Any, step: Any) -> jax.Array:

@@ -1,0 +1,22 @@
+"""Look inside a trained policy: load it, act with it, roll it out, and the helpers a scientist reaches for.
+
+``load_policy(run_dir)`` (also ``jaxsimrl.load_policy``) gives a :class:`LoadedPolicy`. The helpers
+each return plain data (numpy arrays in a NamedTuple) and have a matplotlib ``plot_*`` companion:
+
+- :func:`policy_slice` / :func:`plot_policy_slice`: the action and the value on a 2-D slice of
+  observation space (the other components held fixed);
+- :func:`action_sensitivity` / :func:`plot_sensitivity`: d action / d observation along a
+  trajectory (``jax.jacobian``), as a heat map over time;
+- :func:`hidden_pca` / :func:`plot_hidden_pca`: the LSTM hidden state of a trajectory on its leading
+  principal components, coloured by |velocity|, reward or any record key.
+"""
+
+from jaxsimrl.introspect.hidden import HiddenPCA, hidden_pca, plot_hidden_pca
+from jaxsimrl.introspect.loading import LoadedPolicy, load_policy
+from jaxsimrl.introspect.sensitivity import Sensitivity, action_sensitivity, plot_sensitivity
+from jaxsimrl.introspect.slices import PolicySlice, plot_policy_slice, policy_slice
+from jaxsimrl.introspect.squashed import ActionDistribution
+
+__all__ = ["ActionDistribution", "HiddenPCA", "LoadedPolicy", "PolicySlice", "Sensitivity",
+           "action_sensitivity", "hidden_pca", "load_policy", "plot_hidden_pca", "plot_policy_slice",
+           "plot_sensitivity", "policy_slice"]
