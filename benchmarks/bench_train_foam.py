@@ -6,9 +6,11 @@
    update) trains on ``--num-envs`` cases on a ``--pool`` of workers for ``--updates`` + 1 updates. The
    first update (JAX compilation) is timed apart. Every batch step the trainer makes is recorded:
    the reset seed, the action batch, and the wall time spent inside the pool's ``step``.
-2. **Plain loop:** a fresh pool of the same size is reset with the same seed and stepped with exactly
-   the recorded actions in a Python loop. The solver is deterministic given seed and actions, so the
-   same episodes run (checked: same iterations), and the episodes-per-hour ratio is the time ratio.
+2. **Plain loop:** right after each update, a second pool of the same size (reset with the same seed)
+   is stepped with exactly that update's recorded actions in a Python loop. The solver is deterministic
+   given seed and actions, so the same episodes run (checked: same iterations), and the
+   episodes-per-hour ratio of a pair is its time ratio. Pairs are adjacent in time, so they share the
+   machine's load; the median over updates is reported.
 
 Prints one JSON object: both walls, the ratio (trainer episodes/hour over plain-loop episodes/hour,
 compilation excluded) and where the trainer's time went (inside the pool's step vs PPO updates +
@@ -21,6 +23,7 @@ import argparse
 import json
 import os
 import platform
+import statistics
 import time
 from typing import Any
 
@@ -66,34 +69,33 @@ def record_ended(ended: list[dict[str, Any]], step: int, out: Any) -> None:
         ended.append({"step": step, "env": int(i), "iterations": int(episode["iterations"][i])})
 
 
-def trainer_run(cfg: FoamEnvConfig, ppo: PPOConfig, pool: int, updates: int) -> tuple[RecordedBatch, list]:
+def paired_runs(cfg: FoamEnvConfig, ppo: PPOConfig, pool: int, updates: int) -> dict[str, Any]:
+    """Trainer updates, each followed at once by the plain loop replaying that update's batch steps on a
+    second pool of the same size (paused solvers use no CPU), so every pair meets the same load."""
     recorded = RecordedBatch(BatchedFoamEnv(cfg, ppo.num_envs, pool=pool, seed=0))
+    plain = BatchedFoamEnv(cfg, ppo.num_envs, pool=pool, seed=0)
+    pairs, plain_ended = [], []
     try:
         vec = HostVecEnv(recorded)
         trainer = make_train(ppo, vec=vec, devices=jax.devices()[:1])
         state = trainer.init(jax.random.PRNGKey(0))
-        walls = []
+        plain.reset(seed=recorded.seed)
         for _ in range(updates + 1):
+            first = len(recorded.actions)
             started = time.perf_counter()
             state, metrics = trainer.run_chunk(state)
             jax.block_until_ready(metrics)
-            walls.append(time.perf_counter() - started)
+            trainer_s = time.perf_counter() - started
+            started = time.perf_counter()
+            for step in range(first, len(recorded.actions)):
+                record_ended(plain_ended, step, plain.step(recorded.actions[step]))
+            pairs.append({"trainer_s": trainer_s, "plain_s": time.perf_counter() - started,
+                          "inside_pool_step_s": sum(recorded.step_s[first:])})
         vec.raise_if_failed()
     finally:
         recorded.batch.close()
-    return recorded, walls
-
-
-def plain_run(cfg: FoamEnvConfig, recorded: RecordedBatch, pool: int) -> tuple[list[float], list]:
-    times, ended = [], []
-    with BatchedFoamEnv(cfg, recorded.num_envs, pool=pool, seed=0) as batch:
-        batch.reset(seed=recorded.seed)
-        for step, actions in enumerate(recorded.actions):
-            started = time.perf_counter()
-            out = batch.step(actions)
-            times.append(time.perf_counter() - started)
-            record_ended(ended, step, out)
-    return times, ended
+        plain.close()
+    return {"pairs": pairs, "same_episodes": recorded.ended == plain_ended, "ended": recorded.ended}
 
 
 def main() -> None:
@@ -109,25 +111,23 @@ def main() -> None:
     ppo = PPOConfig.from_dict({**foam_ppo_defaults(args.num_envs), "steps_per_update": args.steps_per_update,
                                "total_steps": args.steps_per_update * (args.updates + 1)})
     load_before = os.getloadavg()[0]
-    recorded, walls = trainer_run(cfg, ppo, args.pool, args.updates)
-    plain_times, plain_ended = plain_run(cfg, recorded, args.pool)
-    first = ppo.steps_per_env  # batch steps of the first (compiling) update
-    same = recorded.ended == plain_ended
-    timed = [e for e in recorded.ended if e["step"] >= first]
-    trainer_wall, plain_wall = sum(walls[1:]), sum(plain_times[first:])
-    inside = sum(recorded.step_s[first:])
+    out = paired_runs(cfg, ppo, args.pool, args.updates)
+    timed = out["pairs"][1:]  # the first update compiles
+    ratios = [p["plain_s"] / p["trainer_s"] for p in timed]
+    trainer_wall = sum(p["trainer_s"] for p in timed)
     result = {
         "machine": f"{platform.machine()} {os.cpu_count()} CPUs, {platform.python_version()}",
         "date_utc": time.strftime("%Y-%m-%d %H:%M", time.gmtime()),
         "load_1min_before_after": [round(load_before, 2), round(os.getloadavg()[0], 2)],
         "mesh_scale": args.mesh_scale, "pool": args.pool, "num_envs": args.num_envs,
         "steps_per_update": args.steps_per_update, "timed_updates": args.updates,
-        "same_episodes": same, "episodes_timed": len(timed),
-        "first_update_s": walls[0], "trainer_wall_s": trainer_wall, "plain_wall_s": plain_wall,
-        "episodes_per_hour_ratio": plain_wall / trainer_wall,
-        "trainer_inside_pool_step_fraction": inside / trainer_wall,
-        "trainer_outside_fraction": 1 - inside / trainer_wall,
-        "mean_iterations": float(np.mean([e["iterations"] for e in timed])) if timed else None,
+        "same_episodes": out["same_episodes"],
+        "episodes_timed": sum(e["step"] >= ppo.steps_per_env for e in out["ended"]),
+        "first_update_s": out["pairs"][0]["trainer_s"],
+        "pairs": timed,
+        "episodes_per_hour_ratio_per_update": ratios,
+        "episodes_per_hour_ratio_median": statistics.median(ratios),
+        "trainer_outside_pool_step_fraction": 1 - sum(p["inside_pool_step_s"] for p in timed) / trainer_wall,
     }
     text = json.dumps(result, indent=2)
     print(text)
