@@ -243,7 +243,8 @@ def inspect_case(case: Path, cfg: FoamEnvConfig, openfoam: OpenFOAM) -> CaseInfo
     flat = isinstance(relaxation, dict) and bool(relaxation) and not (
         "fields" in relaxation or "equations" in relaxation)
     foamdict.expand(openfoam, case, "system/fvSchemes")
-    if not (case / "constant" / "polyMesh" / "boundary").is_file() and _exists(case / "system" / "blockMeshDict"):
+    meshed = (case / "constant" / "polyMesh" / "boundary").is_file()
+    if not meshed and _exists(case / "system" / "blockMeshDict"):
         foamdict.expand(openfoam, case, "system/blockMeshDict")  # before blockMesh: a one-line error
     foamdict.expand(openfoam, case, f"0/{cfg.pressure_field}")
     velocity = foamdict.expand(openfoam, case, f"0/{cfg.velocity_field}")

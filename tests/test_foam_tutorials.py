@@ -37,8 +37,8 @@ def _plain(value):
 
 def _cfg(tmp_path: Path, case: str | Path, **overrides) -> FoamEnvConfig:
     source = case if isinstance(case, Path) else TUTORIALS / case
-    return FoamEnvConfig(**{"case_dir": source, "interval": 50, "max_iterations": 1000, "step_timeout_s": 120.0,
-                            "work_dir": tmp_path / "work", **overrides})
+    return FoamEnvConfig(**{"case_dir": source, "interval": 50, "max_iterations": 1000,
+                            "step_timeout_s": 120.0, "work_dir": tmp_path / "work", **overrides})
 
 
 def _episode(env: FoamCaseEnv, action) -> tuple[list[float], dict]:
@@ -87,12 +87,14 @@ def _run_and_read_back(tmp_path: Path, name: str, action, outcome: str = "conver
         velocity = _plain(expand(openfoam, env.case_dir, "0/U"))
     # the inlet (and every other boundary condition of U) is the tutorial's own
     assert velocity["boundaryField"] == tutorial["0/U"]["boundaryField"]
-    assert obs[0] == pytest.approx((env.case_info.inlet_state + env.case_info.cells_state) / env.cfg.state_scale)
+    initial = (env.case_info.inlet_state + env.case_info.cells_state) / env.cfg.state_scale
+    assert obs[0] == pytest.approx(initial)
     # SIMPLE is the case's own but for the criterion; the agent's factors merged into the case's own
     own_simple = {k: v for k, v in tutorial["system/fvSolution"]["SIMPLE"].items() if k != "residualControl"}
     assert solution["SIMPLE"] == {**own_simple, "residualControl": dict(env.cfg.convergence)}
     # the bridge's function objects go beside the case's own
-    assert {foam_case.CELLS_FUNCTION, foam_case.INLET_FUNCTION, foam_case.PAUSE_FUNCTION} <= set(control["functions"])
+    ours = {foam_case.CELLS_FUNCTION, foam_case.INLET_FUNCTION, foam_case.PAUSE_FUNCTION}
+    assert ours <= set(control["functions"])
     return tutorial["system/fvSolution"]["relaxationFactors"], solution["relaxationFactors"], control, final
 
 
@@ -123,7 +125,8 @@ def test_backward_facing_step_2d_runs_capped_with_its_include_funcs(tmp_path: Pa
     own, used, control, _ = _run_and_read_back(tmp_path, "backwardFacingStep2D", (0.95, 0.95), "truncated",
                                                interval=25, max_iterations=50)
     assert used["equations"] == {"U": 0.95, '".*"': 0.8} and own["equations"]["U"] == 0.9
-    assert {"stressComponents", "pressureCoefficient", "sample", "wallShearStress"} <= set(control["functions"])
+    own_functions = {"stressComponents", "pressureCoefficient", "sample", "sampleCp", "wallShearStress"}
+    assert own_functions <= set(control["functions"])
 
 
 def _air_foil_with_directives(tmp_path: Path) -> Path:
@@ -135,8 +138,8 @@ def _air_foil_with_directives(tmp_path: Path) -> Path:
     text = solution.read_text()
     start = text.index("relaxationFactors")
     solution.write_text(text[:start] + '#include "relaxationSettings"\nrelaxationFactors\n{\n'
-                        '    fields { p $pressureFactor; }\n    equations { U 0.7; "(nuTilda|k)" $turbulenceFactor; }\n'
-                        '}\n')
+                        '    fields { p $pressureFactor; }\n'
+                        '    equations { U 0.7; "(nuTilda|k)" $turbulenceFactor; }\n}\n')
     control = case / "system" / "controlDict"
     control.write_text(control.read_text() + "\nfunctions\n{\n    #includeFunc residuals\n}\n")
     return case
@@ -174,8 +177,8 @@ def test_setting_a_user_case_inlet_is_opt_in_and_uses_its_viscosity(tmp_path: Pa
 
 
 @pytest.mark.parametrize("name, overrides, message", [
-    ("airFoil2D", {"inlet_velocity": 30.0}, "0/U: boundaryField/inlet is type 'freestreamVelocity'; setting "
-                                            "the inlet needs a fixedValue inlet"),
+    ("airFoil2D", {"inlet_velocity": 30.0},
+     "0/U: boundaryField/inlet is type 'freestreamVelocity'; setting the inlet needs a fixedValue inlet"),
     ("pitzDaily", {"inlet_patch": "entry"}, "0/U: no boundaryField entry for the inlet patch 'entry'"),
     ("bump2D", {}, "system/blockMeshDict: entry 'edges' uses #codeStream/#calc, which OpenFOAM v1912 refuses "
                    "to compile when run as root"),
