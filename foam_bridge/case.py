@@ -245,7 +245,7 @@ def inspect_case(case: Path, cfg: FoamEnvConfig, openfoam: OpenFOAM) -> CaseInfo
     foamdict.expand(openfoam, case, "system/fvSchemes")
     meshed = (case / "constant" / "polyMesh" / "boundary").is_file()
     if not meshed and _exists(case / "system" / "blockMeshDict"):
-        foamdict.expand(openfoam, case, "system/blockMeshDict")  # before blockMesh: a one-line error
+        foamdict.expand(openfoam, case, "system/blockMeshDict", parse=False)  # a one-line error first
     foamdict.expand(openfoam, case, f"0/{cfg.pressure_field}")
     velocity = foamdict.expand(openfoam, case, f"0/{cfg.velocity_field}")
     changes_inlet = cfg.velocity_range is not None

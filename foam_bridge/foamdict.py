@@ -32,11 +32,12 @@ _KEYWORD = re.compile(r"^\s*([A-Za-z_\"][^\s{;]*)\s*(?:$|[{(\[]|\S)")
 TIMEOUT_S = 60.0
 
 
-def expand(openfoam: OpenFOAM, case: Path, relative: str) -> dict[str, Any]:
+def expand(openfoam: OpenFOAM, case: Path, relative: str, parse: bool = True) -> dict[str, Any]:
     """The dictionary ``case/relative`` as OpenFOAM reads it (directives executed), as plain Python.
 
     One-line CaseError if OpenFOAM cannot read it (missing, a syntax error, a #codeStream refused as
-    root, ...).
+    root, ...). ``parse=False`` only checks that OpenFOAM can read it (returns {}): foamlib takes
+    seconds over a blockMeshDict's nested lists.
     """
     path = case / relative
     if not path.is_file() and not Path(f"{path}.gz").is_file():
@@ -53,6 +54,8 @@ def expand(openfoam: OpenFOAM, case: Path, relative: str) -> dict[str, Any]:
     if result.returncode != 0:
         raise CaseError(_read_error(path, relative, result.stdout + result.stderr))
     text = _strip_banner(result.stdout)
+    if not parse:
+        return {}
     try:
         return _plain(FoamFile.loads(text)) if text.strip() else {}
     except Exception as err:  # noqa: BLE001 - foamlib's own errors carry the position
