@@ -371,16 +371,17 @@ def write_episode_case(base: Path, dest: Path, cfg: FoamEnvConfig, inlet_velocit
 
 
 def make_uninterrupted(case: Path, cfg: FoamEnvConfig, alpha_u: float, alpha_p: float,
-                       flat: bool = False) -> None:
+                       flat: bool = False, functions: bool = True) -> None:
     """Turn an episode case into a plain one: constant factors in a regular file, no pause.
 
     The factors are written as the bridge would feed them (:func:`relaxation_text`). The reference
-    run for "chunked == uninterrupted" and for the overhead benchmark.
+    run for "chunked == uninterrupted" and for the overhead benchmark (``functions=False``: not even
+    the bridge's state function objects).
     """
     first = relaxation_fifo(case, 0)
     first.unlink()
     first.write_bytes(relaxation_text(cfg, alpha_u, alpha_p, flat))
-    _write_control(case, cfg, pause=False)
+    _write_control(case, cfg, pause=False, functions=functions)
 
 
 def relaxation_text(cfg: FoamEnvConfig, alpha_u: float, alpha_p: float, flat: bool = False) -> bytes:
@@ -470,7 +471,7 @@ def _set_builtin_inlet(case: Path, cfg: FoamEnvConfig, info: CaseInfo, speed: fl
             field["internalField"] = value
 
 
-def _write_control(case: Path, cfg: FoamEnvConfig, pause: bool) -> None:
+def _write_control(case: Path, cfg: FoamEnvConfig, pause: bool, functions: bool = True) -> None:
     """system/foamBridge/controlDict (run control, OptimisationSwitches, functions), #included by
     the case's controlDict."""
     settings = {
@@ -478,7 +479,7 @@ def _write_control(case: Path, cfg: FoamEnvConfig, pause: bool) -> None:
         "deltaT": 1, "writeControl": "timeStep", "writeInterval": cfg.max_iterations,
         "runTimeModifiable": True,
         "OptimisationSwitches": {"fileModificationSkew": 0, "fileModificationChecking": "timeStamp"},
-        "functions": _function_objects(cfg, case, pause),
+        "functions": _function_objects(cfg, case, pause) if functions else {},
     }
     target = case / "system" / CONTROL_INCLUDE
     first = not target.exists()
