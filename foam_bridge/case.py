@@ -481,6 +481,8 @@ def _write_control(case: Path, cfg: FoamEnvConfig, pause: bool, functions: bool 
         "OptimisationSwitches": {"fileModificationSkew": 0, "fileModificationChecking": "timeStamp"},
         "functions": _function_objects(cfg, case, pause) if functions else {},
     }
+    if cfg.case_dir is None:  # the built-in case's results are written losslessly; a user's as theirs
+        settings.update({"purgeWrite": 0, "writeFormat": "binary", "writePrecision": 17})
     target = case / "system" / CONTROL_INCLUDE
     first = not target.exists()
     target.write_bytes(FoamFile.dumps(settings, ensure_header=False))
