@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
-MODULES = ["foam_bridge", "foam_bridge.batched", "foam_bridge.env", "foam_bridge.grid", "foam_bridge.gym_envs",
-           "foam_bridge.backends.local", "foam_bridge.backends.ray_backend"]
+MODULES = ["foam_bridge", "foam_bridge.batched", "foam_bridge.env", "foam_bridge.grid",
+           "foam_bridge.gym_envs", "foam_bridge.backends.local", "foam_bridge.backends.ray_backend"]
 
 
 @pytest.mark.parametrize("module", MODULES)
