@@ -84,8 +84,9 @@ class FoamCaseEnv:
     ``reset(seed=None, options=None) -> (obs, info)``: ends any running episode (kills the solver's
     process group), samples the inlet velocity from the episode RNG (re-seeded when ``seed`` is given;
     seeded with ``env_id`` before the first seed, so runs are reproducible; ``options={"inlet_velocity":
-    v}`` fixes it), writes the case. The observation is the initial state (iteration 0) read from 0/U.
-    The solver starts on the first step.
+    v}`` fixes it; a user's case without ``inlet_velocity`` keeps its own inlet, and "inlet_velocity"
+    reports its speed, NaN if it has no value), writes the case. The observation is the initial state
+    (iteration 0) read from 0/U. The solver starts on the first step.
 
     ``step(action) -> (obs, reward, terminated, truncated, info)``; ``info`` has "iterations" (K),
     "residuals" ({field: latest initial residual}), "outcome" (one of OUTCOMES), "cause" (failure text
