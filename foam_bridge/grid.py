@@ -98,7 +98,7 @@ def run_grid(
     alpha_u, alpha_p = check_factors(alpha_u, "alpha_u"), check_factors(alpha_p, "alpha_p")
     if isinstance(pool, bool) or not isinstance(pool, int) or pool < 1:
         raise ValueError(f"pool must be an integer >= 1, got {pool!r}")
-    cfg = grid_config(cfg, alpha_u, alpha_p)
+    cfg = grid_config(cfg, alpha_u, alpha_p).with_absolute_paths()  # workers need no shared cwd
     pairs = [(u, p) for u in alpha_u for p in alpha_p]
     slots = min(pool, len(pairs))
     root, temporary = work_root(cfg, work_dir, prefix="foam_grid_")
