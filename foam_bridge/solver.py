@@ -8,6 +8,12 @@ succeeds only while a reader has it open, and only the solver's read after itera
 solver that runs past K without opening it (a missed pause) is stopped at once and reported
 (``MISSED``): a step is exactly ``interval`` iterations or it fails with a cause.
 
+OpenFOAM also watches the files fvSolution #includes: writing into a FIFO changes its mtime, and now
+and then (depending on when it took the FIFO's timestamp) the solver re-reads fvSolution for that
+alone, opening the FIFO it has just been served again. So the bridge puts the FIFO's mtime back
+before it closes its end, and should such a re-read happen anyway (it prints "Re-reading object
+fvSolution" first), serves it the same factors again: a re-read never changes the factors of a step.
+
 While the solver runs, its stdout+stderr is read as it arrives, fed to a LogParser and appended to
 ``log.simpleFoam`` in the case. Every wait has a wall-clock deadline (the watchdog): a solver that
 neither pauses nor exits before it is reported as hung, and so is one that closed its output but
@@ -84,6 +90,9 @@ class FoamSolver:
         self.process: subprocess.Popen[bytes] | None = None
         self.pgid: int | None = None
         self._writer: int | None = None
+        self._writer_fifo: Path | None = None
+        #: (FIFO, factors, fvSolution re-reads seen) of the last release: what a re-read is served.
+        self._served: tuple[Path, bytes, int] | None = None
         self._log = None
         #: Seconds the solver sat waiting on the bridge: from its last output before a pause (an upper
         #: bound of the detection latency) to the release. The benchmark's bridge-overhead measure.
@@ -129,28 +138,37 @@ class FoamSolver:
                 time.sleep(READ_BATCH_S)
                 continue
             writer = self._open_fifo_writer(self.fifo(boundary))
-            if writer is not None:
-                self._drain(out)
-                self._writer = writer
-                self._paused_at = time.monotonic()
-                self.idle_s += self._paused_at - self._last_output
-                if self.parser.diverged:
-                    return DIVERGED
-                return MISSED if self.parser.completed != boundary else PAUSED
+            if writer is None:
+                self._serve_reread()
+                continue
+            self._drain(out)
+            self._writer, self._writer_fifo = writer, self.fifo(boundary)
+            self._paused_at = time.monotonic()
+            self.idle_s += self._paused_at - self._last_output
+            if self.parser.diverged:
+                return DIVERGED
+            return MISSED if self.parser.completed != boundary else PAUSED
 
     def release(self, text: bytes) -> None:
         """Hand the waiting solver its relaxation factors; it resumes once the FIFO is closed."""
-        if self._writer is None:
+        if self._writer is None or self._writer_fifo is None:
             raise RuntimeError("the solver is not paused")
-        try:
-            os.set_blocking(self._writer, True)
-            os.write(self._writer, text)
-        except BrokenPipeError:
-            pass  # the solver died meanwhile; the next wait() reports its exit
-        finally:
-            os.close(self._writer)
-            self._writer = None
-            self.idle_s += time.monotonic() - self._paused_at
+        _feed(self._writer, self._writer_fifo, text)
+        self._served = (self._writer_fifo, text, self.parser.fvsolution_rereads)
+        self._writer = self._writer_fifo = None
+        self.idle_s += time.monotonic() - self._paused_at
+
+    def _serve_reread(self) -> None:
+        """Serve the last factors again to a re-read of the FIFO they were served from (see the module
+        docstring). Only after a new "Re-reading" line: a reader there before it is the stale one of
+        the read already served, which gets nothing."""
+        if self._served is None or self.parser.fvsolution_rereads <= self._served[2]:
+            return
+        fifo, text, _ = self._served
+        writer = self._open_fifo_writer(fifo)
+        if writer is not None:
+            _feed(writer, fifo, text)
+            self._served = (fifo, text, self.parser.fvsolution_rereads)
 
     def kill(self) -> int | None:
         """SIGKILL the solver's whole process group, reap it, read its output to EOF, close everything.
@@ -227,6 +245,19 @@ class FoamSolver:
             if error.errno in (errno.ENXIO, errno.ENOENT):
                 return None
             raise
+
+
+def _feed(writer: int, fifo: Path, text: bytes) -> None:
+    """Write ``text`` into the FIFO and close it, its mtime put back first (no watch-triggered re-read)."""
+    try:
+        before = os.stat(fifo)
+        os.set_blocking(writer, True)
+        os.write(writer, text)
+        os.utime(fifo, ns=(before.st_atime_ns, before.st_mtime_ns))
+    except (BrokenPipeError, FileNotFoundError):
+        pass  # the solver died (or the case was broken) meanwhile; the next wait() reports it
+    finally:
+        os.close(writer)
 
 
 def _exit_status(pid: int) -> int | None:

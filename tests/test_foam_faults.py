@@ -84,6 +84,54 @@ def test_every_pause_gets_its_factors_without_trusting_a_log_line(tmp_path):
     assert (solver.case / "got.1").read_text() == "second\n"
 
 
+REREAD = "printf 'Re-reading object fvSolution from file \"x\" because of modified file \"y\"\\n'\n"
+
+
+def test_a_re_read_of_the_served_fifo_gets_the_same_factors_again(tmp_path):
+    # OpenFOAM watches fvSolution's includes: a FIFO's changed mtime can make it re-read fvSolution
+    solver = _fake_solver(tmp_path, f"""
+        read_factors system/foamBridge/relaxation.0 got.0
+        {REREAD}read_factors system/foamBridge/relaxation.0 got.again
+        {_iteration(1)}read_factors system/foamBridge/relaxation.1 got.1""")
+    try:
+        assert solver.wait(5, 0) == PAUSED
+        solver.release(b"first\n")
+        assert solver.wait(5, 1) == PAUSED and solver.parser.completed == 1
+        solver.release(b"second\n")
+        assert solver.wait(5, 2) == EXITED
+    finally:
+        solver.kill()
+    assert (solver.case / "got.again").read_text() == "first\n"
+    assert (solver.case / "got.1").read_text() == "second\n"
+
+
+def test_serving_a_fifo_leaves_its_mtime_as_it_was(tmp_path):
+    solver = _fake_solver(tmp_path, f"read_factors system/foamBridge/relaxation.0 got.0\n{_iteration(1)}")
+    fifo = solver.fifo(0)
+    before = os.stat(fifo).st_mtime_ns
+    time.sleep(0.02)
+    try:
+        assert solver.wait(5, 0) == PAUSED
+        solver.release(b"first\n")
+        assert solver.wait(5, 1) == EXITED
+    finally:
+        solver.kill()
+    assert os.stat(fifo).st_mtime_ns == before and (solver.case / "got.0").read_text() == "first\n"
+
+
+def test_a_reader_without_a_re_read_line_gets_nothing_and_the_step_hangs(tmp_path):
+    solver = _fake_solver(tmp_path, """
+        read_factors system/foamBridge/relaxation.0 got.0
+        read_factors system/foamBridge/relaxation.0 got.again""")
+    try:
+        assert solver.wait(5, 0) == PAUSED
+        solver.release(b"first\n")
+        assert solver.wait(1.0, 1) == HUNG  # a failure with a cause, never an unexplained read
+    finally:
+        solver.kill()
+    assert not (solver.case / "got.again").exists() or (solver.case / "got.again").read_text() == ""
+
+
 def test_a_solver_that_runs_past_its_pause_is_stopped_as_missed(tmp_path):
     solver = _fake_solver(tmp_path, f"""
         read_factors system/foamBridge/relaxation.0 got.0
