@@ -72,6 +72,13 @@ def test_every_pause_gets_its_factors_without_trusting_a_log_line(tmp_path):
         read_factors system/foamBridge/relaxation.0 got.0
         {_iteration(1)}read_factors system/foamBridge/relaxation.1 got.1
         {_iteration(2)}""")
+    _serve_two_pauses(solver)
+    assert (solver.case / "got.0").read_text() == "first\n"
+    assert (solver.case / "got.1").read_text() == "second\n"
+
+
+def _serve_two_pauses(solver: FoamSolver) -> None:
+    """Start-up pause, "first"; the pause after iteration 1, "second"; then the stand-in exits."""
     try:
         assert solver.wait(5, 0) == PAUSED
         solver.release(b"first\n")
@@ -80,8 +87,6 @@ def test_every_pause_gets_its_factors_without_trusting_a_log_line(tmp_path):
         assert solver.wait(5, 2) == EXITED
     finally:
         assert solver.kill() == 0
-    assert (solver.case / "got.0").read_text() == "first\n"
-    assert (solver.case / "got.1").read_text() == "second\n"
 
 
 REREAD = "printf 'Re-reading object fvSolution from file \"x\" because of modified file \"y\"\\n'\n"
@@ -93,14 +98,7 @@ def test_a_re_read_of_the_served_fifo_gets_the_same_factors_again(tmp_path):
         read_factors system/foamBridge/relaxation.0 got.0
         {REREAD}read_factors system/foamBridge/relaxation.0 got.again
         {_iteration(1)}read_factors system/foamBridge/relaxation.1 got.1""")
-    try:
-        assert solver.wait(5, 0) == PAUSED
-        solver.release(b"first\n")
-        assert solver.wait(5, 1) == PAUSED and solver.parser.completed == 1
-        solver.release(b"second\n")
-        assert solver.wait(5, 2) == EXITED
-    finally:
-        solver.kill()
+    _serve_two_pauses(solver)
     assert (solver.case / "got.again").read_text() == "first\n"
     assert (solver.case / "got.1").read_text() == "second\n"
 
