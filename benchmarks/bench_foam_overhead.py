@@ -27,10 +27,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from foamlib import FoamFile
-
 from foam_bridge import case as foam_case
-from foam_bridge.config import U_REF, FoamEnvConfig
+from foam_bridge.config import FOLLOW_ALPHA_U, U_REF, FoamEnvConfig
 from foam_bridge.env import FoamCaseEnv
 from foam_bridge.logparse import LogParser
 from foam_bridge.solver import run_to_end
@@ -54,18 +52,15 @@ def run_env_episode(env: FoamCaseEnv) -> dict[str, float]:
 
 def run_reference(env: FoamCaseEnv, directory: Path, keep_functions: bool) -> dict[str, float]:
     """simpleFoam start to end on a fresh copy of the episode case, no pause."""
-    foam_case.write_episode_case(env.base, directory, env.cfg, U_REF)
-    foam_case.make_uninterrupted(directory, env.cfg, *ACTION)
-    if not keep_functions:
-        with FoamFile(directory / "system" / "controlDict") as control:
-            del control["functions"]
+    foam_case.write_episode_case(env.base, directory, env.cfg, U_REF, env.case_info)
+    foam_case.make_uninterrupted(directory, env.cfg, *ACTION, functions=keep_functions)
     parser = LogParser(foam_case.CELLS_FUNCTION, foam_case.INLET_FUNCTION)
     code, wall = run_to_end(directory, env.openfoam, parser, timeout_s=1800)
     return {"wall_s": wall, "iterations": parser.converged_at or parser.completed, "exit_code": code}
 
 
 def bench_mesh(mesh_scale: float, repeats: int, interval: int, work: Path,
-               relax_k_omega: float | None = None) -> dict:
+               relax_k_omega: float | str = FOLLOW_ALPHA_U) -> dict:
     cfg = FoamEnvConfig(mesh_scale=mesh_scale, simple_variant="SIMPLEC", interval=interval,
                         max_iterations=4000, step_timeout_s=600.0, relax_k_omega=relax_k_omega,
                         work_dir=work / f"scale_{mesh_scale}")
@@ -111,12 +106,17 @@ def _ratios(numerators: list[dict], denominators: list[dict]) -> list[float]:
     return [round(n["wall_s"] / d["wall_s"], 4) for n, d in zip(numerators, denominators, strict=True)]
 
 
+def _k_omega(text: str) -> float | str:
+    """A fixed k/omega factor, or "alpha_u" (FoamEnvConfig.relax_k_omega's FOLLOW_ALPHA_U)."""
+    return text if text == FOLLOW_ALPHA_U else float(text)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--mesh-scales", type=float, nargs="+", default=[1.0, 0.4])
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--interval", type=int, default=100)
-    parser.add_argument("--relax-k-omega", type=float, default=None,
+    parser.add_argument("--relax-k-omega", type=_k_omega, default=FOLLOW_ALPHA_U,
                         help="fixed k/omega relaxation (RESULTS_foam.md's second table and the grid study "
                         "use 0.8); default: alpha_u")
     parser.add_argument("--out", type=Path, default=None, help="write the results as JSON here")

@@ -20,7 +20,7 @@ import time
 import numpy as np
 
 from foam_bridge.batched import BatchedFoamEnv
-from foam_bridge.config import MESH_SCALE_USABLE_MIN, FoamEnvConfig
+from foam_bridge.config import FOLLOW_ALPHA_U, MESH_SCALE_USABLE_MIN, FoamEnvConfig
 
 
 def measure(cfg: FoamEnvConfig, num_envs: int, pool: int, episodes: int, policy: str, seed: int) -> dict:
@@ -49,6 +49,11 @@ def measure(cfg: FoamEnvConfig, num_envs: int, pool: int, episodes: int, policy:
             "outcomes": {o: sum(e["outcome"] == o for e in ended) for o in {e["outcome"] for e in ended}}}
 
 
+def _k_omega(text: str) -> float | str:
+    """A fixed k/omega factor, or "alpha_u" (FoamEnvConfig.relax_k_omega's FOLLOW_ALPHA_U)."""
+    return text if text == FOLLOW_ALPHA_U else float(text)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--mesh-scale", type=float, default=MESH_SCALE_USABLE_MIN,
@@ -59,7 +64,7 @@ def main() -> None:
     parser.add_argument("--policy", choices=("random", "constant"), default="random")
     parser.add_argument("--simple-variant", choices=("SIMPLE", "SIMPLEC"), default="SIMPLEC")
     parser.add_argument("--max-iterations", type=int, default=4000)
-    parser.add_argument("--relax-k-omega", type=float, default=None,
+    parser.add_argument("--relax-k-omega", type=_k_omega, default=FOLLOW_ALPHA_U,
                         help="fixed k/omega factor (default: follow alpha_u)")
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()

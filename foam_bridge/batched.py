@@ -14,11 +14,13 @@ Seeding: ``seed`` (int, or one int per env) seeds one random stream per env; eve
 auto-resets and the episode after a worker crash, is reset with a seed drawn from its env's stream.
 So the same seed and actions give the same episodes on any backend and after worker restarts.
 
-Failures never raise: a dead or hung worker ends that env's episode with outcome "crashed", cause
-"worker died" and the config's failure penalty; the worker is replaced and the other envs go on.
-
-``BatchedFoamEnv.protocol()`` gives the same batch in the jaxsimrl protocol form (reset(key, params),
-step(key, state, action, params)) with numpy arrays, for a JAX trainer stepping it via io_callback.
+``step()`` never raises for a solver or worker fault (only for bad actions): a solver that crashed,
+diverged or hung ends its episode with that outcome; a dead or hung worker ends the episodes of its
+envs with outcome "crashed", cause "worker died" and the config's failure penalty, and is replaced;
+an auto-reset that fails (however many workers die, or the case breaks) leaves the env waiting for a
+reset, retried before its next step; while that fails, each step of that env is a failed episode of
+0 iterations with cause "reset failed: ...". The other envs go on in every case. (``reset()`` itself
+raises when an env cannot start at all: a broken case or setup is the caller's to fix.)
 """
 
 from __future__ import annotations
@@ -27,15 +29,14 @@ import os
 import shutil
 import time
 from dataclasses import dataclass, field
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 
 from foam_bridge.backends import BAD_INPUT_ERRORS, WORKER_DIED, Reply, Request, make_backend, validate_pool
 from foam_bridge.config import FoamEnvConfig, failure_reward, work_root  # failure_reward: re-exported
-from foam_bridge.env import action_spec, observation_spec, seed_from_key
-from jaxsimrl.envs.protocol import BoxSpec, Step
+from foam_bridge.env import action_spec, observation_spec
 
 SEED_BOUND = 2**31 - 1
 
@@ -55,12 +56,15 @@ class _Tally:
     """What the host knows of one env's running episode (enough to record it if its worker dies)."""
 
     obs: np.ndarray
+    seed: int | None = None
     inlet_velocity: float = float("nan")
     iterations: int = 0
     episode_return: float = 0.0
     residuals: dict[str, float] = field(default_factory=dict)
     actions: list[list[float]] = field(default_factory=list)
     started: float = field(default_factory=time.monotonic)
+    #: Why the env has no running episode (its auto-reset failed); "" while it has one.
+    reset_failure: str = ""
 
 
 class BatchedFoamEnv:
@@ -78,7 +82,7 @@ class BatchedFoamEnv:
         work_dir: str | os.PathLike[str] | None = None,
         seed: int | list[int] | None = None,
     ) -> None:
-        self.cfg = cfg.validate()
+        self.cfg = cfg = cfg.validate().with_absolute_paths()
         pool = validate_pool(num_envs, pool)  # bad sizes fail before anything is created
         self.num_envs = num_envs
         self.observation_spec = observation_spec(cfg)
@@ -114,35 +118,52 @@ class BatchedFoamEnv:
         if seed is not None:
             self._streams = self._seed_streams(seed)
         infos: dict[str, Any] = {}
-        for env_id, (_, info) in self._reset_envs(list(range(self.num_envs)), options).items():
+        results, failures = self._reset_envs(list(range(self.num_envs)), options)
+        if failures:
+            raise _reset_error(failures[min(failures)])
+        for env_id, (_, info) in results.items():
             infos = self._batcher.add(infos, info, env_id)
         return self._observations(), infos
 
-    def _reset_envs(self, env_ids: list[int], options: dict[str, Any] | None = None) -> dict[int, tuple]:
-        """Reset some envs in parallel; a worker that dies during reset gets one more try."""
+    def _reset_envs(
+        self, env_ids: list[int], options: dict[str, Any] | None = None
+    ) -> tuple[dict[int, tuple], dict[int, Reply]]:
+        """Reset some envs in parallel; a worker that dies during reset gets one more try.
+
+        Returns (env -> (obs, info) of the reset ones, env -> the failed Reply of the others).
+        """
         seeds = {i: self._episode_seed(i) for i in env_ids}
         results: dict[int, tuple] = {}
+        failures: dict[int, Reply] = {}
         pending = list(env_ids)
         for attempt in range(2):
             requests = [Request(i, "reset", {"seed": seeds[i], "options": options}) for i in pending]
-            failed = []
+            pending = []
             for reply in self.backend.run(requests):
                 if reply.ok:
-                    results[reply.env_id] = self._start_tally(reply.env_id, *reply.value)
+                    results[reply.env_id] = self._start_tally(reply.env_id, seeds[reply.env_id], *reply.value)
                 elif reply.worker_died and attempt == 0:
-                    failed.append(reply.env_id)
+                    pending.append(reply.env_id)
                 else:
-                    raise _reset_error(reply)
-            pending = failed
+                    failures[reply.env_id] = reply
             if not pending:
                 break
-        return results
+        return results, failures
 
-    def _start_tally(self, env_id: int, obs: Any, info: dict[str, Any]) -> tuple[np.ndarray, dict[str, Any]]:
+    def _start_tally(self, env_id: int, seed: int, obs: Any, info: dict[str, Any]) -> tuple[np.ndarray, dict]:
         obs = np.asarray(obs, np.float32)
-        self._tallies[env_id] = _Tally(obs, inlet_velocity=float(info.get("inlet_velocity", np.nan)),
+        velocity = float(info.get("inlet_velocity", np.nan))
+        self._tallies[env_id] = _Tally(obs, seed=seed, inlet_velocity=velocity,
                                        residuals=dict(info.get("residuals", {})))
         return obs, info
+
+    def _retry_resets(self) -> dict[int, str]:
+        """Reset the envs whose auto-reset failed; env -> cause for those that fail again."""
+        waiting = [i for i, tally in enumerate(self._tallies) if tally.reset_failure]
+        if not waiting:
+            return {}
+        _, failures = self._reset_envs(waiting)
+        return {i: _reset_cause(reply) for i, reply in failures.items()}
 
     # ----- step --------------------------------------------------------------------------------
     def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
@@ -152,23 +173,24 @@ class BatchedFoamEnv:
             raise ValueError(f"actions: expected shape ({self.num_envs}, 2), got {actions.shape}")
         if not np.isfinite(actions).all():  # an agent bug, not a solver failure: refuse, as FoamCaseEnv does
             raise ValueError(f"actions: expected finite (alpha_u, alpha_p), got {actions.tolist()}")
-        replies = self.backend.run([Request(i, "step", {"action": actions[i]}) for i in range(self.num_envs)])
-        rewards = np.zeros(self.num_envs, np.float64)
-        terminated = np.zeros(self.num_envs, bool)
-        truncated = np.zeros(self.num_envs, bool)
-        step_infos: list[dict[str, Any]] = []
-        for reply in replies:
-            i = reply.env_id
-            obs, reward, term, trunc, info = self._step_result(reply, actions[i])
-            rewards[i], terminated[i], truncated[i] = reward, term, trunc
-            step_infos.append(info)
+        unstarted = self._retry_resets()
+        runnable = [i for i in range(self.num_envs) if i not in unstarted]
+        replies = self.backend.run([Request(i, "step", {"action": actions[i]}) for i in runnable])
+        results = {reply.env_id: self._step_result(reply, actions[reply.env_id]) for reply in replies}
+        for i, cause in unstarted.items():  # no episode to step: a failed one of 0 iterations
+            self._tallies[i] = _Tally(self._tallies[i].obs)
+            results[i] = self._failed_step(self._tallies[i], actions[i], cause)
+        rewards = np.array([results[i][1] for i in range(self.num_envs)], np.float64)
+        terminated = np.array([results[i][2] for i in range(self.num_envs)], bool)
+        truncated = np.array([results[i][3] for i in range(self.num_envs)], bool)
+        step_infos = [results[i][4] for i in range(self.num_envs)]
         infos = self._autoreset(terminated | truncated, step_infos)  # before reading obs: resets replace them
         return self._observations(), rewards, terminated, truncated, infos
 
     def _step_result(self, reply: Reply, action: np.ndarray) -> tuple:
         tally = self._tallies[reply.env_id]
-        tally.actions.append([float(a) for a in action])
         if reply.ok:
+            tally.actions.append([float(a) for a in action])
             obs, reward, term, trunc, info = reply.value
             tally.obs = np.asarray(obs, np.float32)
             tally.iterations = int(info.get("iterations", tally.iterations))
@@ -176,6 +198,11 @@ class BatchedFoamEnv:
             tally.episode_return += float(reward)
             return tally.obs, float(reward), bool(term), bool(trunc), info
         cause = WORKER_DIED if reply.worker_died else f"worker error: {reply.error} ({reply.where})"
+        return self._failed_step(tally, action, cause)
+
+    def _failed_step(self, tally: _Tally, action: np.ndarray, cause: str) -> tuple:
+        """The step result of an episode the env itself could not report: crashed, with the penalty."""
+        tally.actions.append([float(a) for a in action])
         reward = failure_reward(self.cfg, tally.iterations)
         tally.episode_return += reward
         return tally.obs, reward, True, False, self._failure_info(tally, cause)
@@ -184,7 +211,7 @@ class BatchedFoamEnv:
         """The info (with episode record) of an episode the env itself could not report."""
         record = {
             "outcome": "crashed", "cause": cause, "iterations": tally.iterations,
-            "return": tally.episode_return, "actions": list(tally.actions),
+            "return": tally.episode_return, "actions": list(tally.actions), "seed": tally.seed,
             "inlet_velocity": tally.inlet_velocity, "wall_time_s": time.monotonic() - tally.started,
         }
         return {"iterations": tally.iterations, "residuals": dict(tally.residuals), "outcome": "crashed",
@@ -196,7 +223,10 @@ class BatchedFoamEnv:
         for i in finished:
             final = {"final_obs": self._tallies[i].obs, "final_info": step_infos[i]}
             infos = self._batcher.add(infos, final, i)
-        reset_infos = {i: info for i, (_, info) in self._reset_envs(finished).items()} if finished else {}
+        results, failures = self._reset_envs(finished) if finished else ({}, {})
+        reset_infos = {i: info for i, (_, info) in results.items()}
+        for i, reply in failures.items():  # retried before the env's next step; obs stays the final one
+            self._tallies[i].reset_failure = _reset_cause(reply)
         for i in range(self.num_envs):
             infos = self._batcher.add(infos, reset_infos.get(i, step_infos[i]), i)
         return infos
@@ -212,10 +242,6 @@ class BatchedFoamEnv:
     def worker_pids(self) -> list[int]:
         """Process id of the worker hosting each env (env i -> entry i)."""
         return [self.backend.worker_pid(i) for i in range(self.num_envs)]
-
-    def protocol(self) -> BatchedFoamProtocol:
-        """This batch in the jaxsimrl protocol form (see BatchedFoamProtocol)."""
-        return BatchedFoamProtocol(self)
 
     def close(self) -> None:
         """Close every env (their solvers die), stop the workers, drop a temporary work_dir. Idempotent."""
@@ -237,61 +263,11 @@ class BatchedFoamEnv:
             self.close()
 
 
+def _reset_cause(reply: Reply) -> str:
+    return f"reset failed: {WORKER_DIED if reply.worker_died else reply.error}"
+
+
 def _reset_error(reply: Reply) -> Exception:
     """A reset that failed for a reason other than a (first) worker death: bad input or a broken setup."""
     message = f"env {reply.env_id}: reset failed: {reply.error}"
     return ValueError(message) if reply.kind in BAD_INPUT_ERRORS else RuntimeError(message)
-
-
-class BatchedState(NamedTuple):
-    """Host-side state handle of the protocol form: episodes ended and iterations, per env (int32 [N])."""
-
-    episode: np.ndarray
-    iterations: np.ndarray
-
-
-class BatchedFoamProtocol:
-    """A BatchedFoamEnv in the protocol form: plain numpy in, numpy out (io_callback friendly).
-
-    ``reset(key, params)`` re-seeds every env from ``key`` and resets them all; ``step`` steps all envs
-    and auto-resets finished ones (the batch is a host env: its solvers cannot be rewound, so the
-    trainer never resets it itself). ``params`` must be None or the batch's own config: a running
-    batch cannot change its cases. The returned state is a handle (episode counters, iterations), not
-    the solver state; passing an old one does not rewind anything.
-    """
-
-    def __init__(self, env: BatchedFoamEnv) -> None:
-        self.env = env
-        self._episodes = np.zeros(env.num_envs, np.int32)
-
-    def default_params(self) -> FoamEnvConfig:
-        return self.env.cfg
-
-    def _check(self, params: Any) -> None:
-        if params is not None and params is not self.env.cfg and params != self.env.cfg:
-            raise ValueError("params: a BatchedFoamEnv runs with the config it was built with")
-
-    def observation_space(self, params: Any = None) -> BoxSpec:
-        return self.env.observation_spec
-
-    def action_space(self, params: Any = None) -> BoxSpec:
-        return self.env.action_spec
-
-    def reset(self, key: Any, params: Any = None) -> tuple[np.ndarray, BatchedState]:
-        self._check(params)
-        obs, _ = self.env.reset(seed=seed_from_key(key))
-        self._episodes[:] = 0
-        return obs, BatchedState(self._episodes.copy(), np.zeros(self.env.num_envs, np.int32))
-
-    def step(self, key: Any, state: BatchedState, action: Any, params: Any = None) -> Step:
-        self._check(params)
-        obs, reward, terminated, truncated, infos = self.env.step(action)
-        done = terminated | truncated
-        self._episodes += done.astype(np.int32)
-        iterations = self.env.iterations()
-        # Iterations of the episodes that just ended, so a trainer sees them despite the auto-reset.
-        ended = infos.get("final_info", {}).get("iterations", 0)
-        final_iterations = np.where(done, ended, 0).astype(np.int32)
-        info = {"final_iterations": final_iterations, "episode_done": done, "infos": infos}
-        return Step(obs, BatchedState(self._episodes.copy(), iterations), reward.astype(np.float32),
-                    terminated, truncated, info)

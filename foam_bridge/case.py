@@ -3,48 +3,66 @@
 Two stages:
 
 1. :func:`build_base_case` (once per env): copy the template (or the user's case) to ``base/``, write
-   the mesh parameters and run blockMesh when there is no mesh yet, and check that every file, field
-   and the inlet patch the env needs exist (one-line :class:`foam_bridge.errors.CaseError` if not).
+   the mesh parameters and run blockMesh when there is no mesh yet, check that the env can drive the
+   case (one-line :class:`foam_bridge.errors.CaseError` naming the file and entry if not) and read what
+   it needs from it (:class:`CaseInfo`).
 2. :func:`write_episode_case` (every episode): copy ``base/`` to a fresh directory (the mesh is
-   symlinked), set the inlet velocity (and inlet k, omega), and install the bridge's machinery:
+   symlinked) and install the bridge's machinery.
 
-   - controlDict: ``endTime = max_iterations``, binary writes only at the end, runTimeModifiable with
-     ``OptimisationSwitches { fileModificationSkew 0; fileModificationChecking timeStamp; }`` and the
-     bridge's function objects instead of the case's own: ``magSqr(U)``, its ``volFieldValue``
-     average over all cells and ``surfaceFieldValue`` average over the inlet faces (printed every
-     iteration: the paper's state), and the pause (see below).
-   - fvSolution: ``SIMPLE.consistent`` from the variant, ``SIMPLE.residualControl`` = the convergence
-     criterion (simpleFoam stops itself on the iteration it is met), the case's relaxationFactors
-     moved out, ``#include "foamBridgeRelaxation"`` appended. ``foamBridgeRelaxation`` is a FIFO.
+A user's dictionaries are never re-serialised: the bridge *appends* one ``#include`` of a file it
+writes itself to the end of controlDict and fvSolution (OpenFOAM merges a later entry into an earlier
+one of the same name), so ``#include``/``#includeFunc``/``$var``/regex keys, comments and everything the
+bridge does not set stay exactly the user's. What it sets (``system/foamBridge/``):
 
-The pause: a ``timeActivatedFileUpdate`` function object replaces ``system/fvSolution`` by an identical
-copy after iterations interval, 2 interval, ... OpenFOAM v1912 executes function objects *before* it
-re-reads modified files in ``Time::run()``, so simpleFoam re-reads fvSolution right after iteration K,
-opens the FIFO and blocks until the bridge writes the new relaxationFactors into it: the solver stops
-exactly between iterations K and K+1 and the new factors govern iteration K+1 onwards (measured, and
-tested in tests/test_foam_env.py). The very first read (at start-up) takes the episode's first action.
-(Why not a ``systemCall`` function object blocking on a FIFO: v1912 refuses system calls when run as
-root, which containers and CI usually are; and the factors would still have to travel by a file.)
+- controlDict: ``startTime 0``, ``endTime = max_iterations``, ``deltaT 1``, one write at the end,
+  ``runTimeModifiable`` with ``OptimisationSwitches { fileModificationSkew 0; fileModificationChecking
+  timeStamp; }``, and its function objects *beside* the case's own (merged into ``functions``):
+  ``magSqr(U)``, its ``volFieldValue`` average over all cells and ``surfaceFieldValue`` average over the
+  inlet faces (printed every iteration: the paper's state), and the pause (see below).
+- fvSolution: ``SIMPLE`` is the case's own with ``residualControl`` replaced by the convergence
+  criterion (simpleFoam stops itself on the iteration it is met) and ``consistent`` set only if a
+  SIMPLE variant applies (the built-in case's SIMPLEC, or the user's explicit choice); then the
+  relaxation factors of this step, read from a FIFO and merged into the case's own
+  ``relaxationFactors``: only U, p and (if a factor applies) the turbulence fields change.
+- the inlet (only when its speed is set: always for the built-in case, opt-in for a user's):
+  ``boundaryField { <inlet> { type fixedValue; value uniform (...); } }`` appended to 0/U (the
+  direction is the case's), and the inlet k/omega likewise when a turbulence formula applies.
 
-Inlet turbulence (the paper's values: intensity I = 6.1e-4, nu_t/nu = 0.009, nu = 1.56e-5 m^2/s):
-``k = 1.5 (I U)^2`` and ``omega = k / nu_t`` with ``nu_t = 0.009 nu``. (The tutorial's omega, 181728,
-does not follow this formula; we follow the paper.)
+The pause: a ``timeActivatedFileUpdate`` function object replaces ``system/fvSolution`` after iterations
+interval, 2 interval, ... by a copy whose relaxation ``#include`` names a FIFO of its own,
+``foamBridge/relaxation.<K>``. OpenFOAM v1912 executes function objects *before* it re-reads modified
+files in ``Time::run()``, so simpleFoam re-reads fvSolution right after iteration K, opens that FIFO
+and blocks until the bridge writes the new relaxationFactors into it: the solver stops exactly
+between iterations K and K+1 and the new factors govern iteration K+1 onwards (measured, and tested
+in tests/test_foam_env.py). One FIFO per boundary means a reader on FIFO K *is* the pause at K: no
+log line has to be trusted, and a stale reader of an earlier read can never be taken for it. The
+start-up read takes the episode's first action from ``relaxation.0``. (Why not a ``systemCall``
+function object blocking on a FIFO: v1912 refuses system calls when run as root, which containers and
+CI usually are; and the factors would still have to travel by a file.)
+
+Inlet turbulence of the built-in case (the paper's values: intensity I = 6.1e-4, nu_t/nu = 0.009,
+nu = 1.56e-5 m^2/s from its transportProperties): ``k = 1.5 (I U)^2`` and ``omega = k / nu_t`` with
+``nu_t = 0.009 nu``. (The tutorial's omega, 181728, does not follow this formula; we follow the paper.)
 """
 
 from __future__ import annotations
 
+import contextlib
+import gzip
 import math
 import os
 import shutil
 import subprocess
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from foamlib import FoamFile
 
-from foam_bridge.config import STEP_HEIGHT_H, FoamEnvConfig
+from foam_bridge import foamdict
+from foam_bridge.config import FOLLOW_ALPHA_U, STEP_HEIGHT_H, FoamEnvConfig
 from foam_bridge.errors import CaseError
 from foam_bridge.openfoam import OpenFOAM
 
@@ -56,13 +74,50 @@ KINEMATIC_VISCOSITY = 1.56e-5
 TUTORIAL_CELLS: Mapping[str, int] = {
     "nxStartup": 2, "nxChannel": 88, "nxStep": 97, "nxDown": 33, "nyStep": 48, "nyChannel": 65,
 }
-RELAXATION_FIFO = "foamBridgeRelaxation"
-FVSOLUTION_COPY = "fvSolution.foamBridge"
+#: The bridge's files live in ``system/BRIDGE_DIR`` of an episode case.
+BRIDGE_DIR = "foamBridge"
+CONTROL_INCLUDE = f"{BRIDGE_DIR}/controlDict"
+SIMPLE_INCLUDE = f"{BRIDGE_DIR}/SIMPLE"
 STATE_FIELD = "foamBridgeMagSqrU"
 CELLS_FUNCTION = "foamBridgeCells"
 INLET_FUNCTION = "foamBridgeInlet"
 PAUSE_FUNCTION = "foamBridgePause"
 _FIELD_LIBS = ["libfieldFunctionObjects.so"]
+#: Directories of a user's case that are results, not inputs: never copied.
+_NOT_COPIED = ("processor*", "log.*", "postProcessing", "dynamicCode", "VTK")
+
+
+def relaxation_fifo(case: Path, boundary: int) -> Path:
+    """The FIFO the solver reads its relaxation factors from at the pause after iteration ``boundary``."""
+    return case / "system" / BRIDGE_DIR / f"relaxation.{boundary}"
+
+
+def _fv_solution_copy(case: Path, boundary: int) -> Path:
+    return case / "system" / BRIDGE_DIR / f"fvSolution.{boundary}"
+
+
+def pause_boundaries(cfg: FoamEnvConfig) -> list[int]:
+    """Iterations after which the solver pauses (0 = start-up, then every ``interval`` before the cap)."""
+    return list(range(0, cfg.max_iterations, cfg.interval))
+
+
+@dataclass(frozen=True)
+class CaseInfo:
+    """What the env reads from a base case once (through OpenFOAM's own expansion of its files).
+
+    ``inlet_speed``/``inlet_direction``: |mean inlet U| and its direction (None/x if the inlet has
+    no value); ``inlet_state``/``cells_state``: mean |U|^2 over the inlet faces and over the cells of
+    0/U; ``flat_relaxation``: the case's relaxationFactors use the old flat layout (``U 0.7;``, no
+    ``fields``/``equations``); ``nu``: the kinematic viscosity (only read when a turbulence formula
+    applies).
+    """
+
+    inlet_speed: float | None
+    inlet_direction: tuple[float, float, float]
+    inlet_state: float
+    cells_state: float
+    flat_relaxation: bool = False
+    nu: float | None = None
 
 
 def inlet_turbulence(velocity: float, intensity: float = TURBULENCE_INTENSITY,
@@ -86,23 +141,63 @@ def mesh_parameters(mesh_scale: float, step_height: float) -> dict[str, float | 
     return {"yFloor": 1.0 - ratio, **cells}
 
 
-def build_base_case(cfg: FoamEnvConfig, dest: Path, openfoam: OpenFOAM) -> None:
-    """Copy the template (or ``cfg.case_dir``) to ``dest``, mesh it if needed, and check it."""
+# ----- base case ------------------------------------------------------------------------------------
+def build_base_case(cfg: FoamEnvConfig, dest: Path, openfoam: OpenFOAM) -> CaseInfo:
+    """Copy the template (or ``cfg.case_dir``) to ``dest``, mesh it if needed, check it, read it."""
     source = TEMPLATE_DIR if cfg.case_dir is None else Path(cfg.case_dir)
     check_case_files(source, cfg, need_mesh=False)
-    if dest.exists():
-        shutil.rmtree(dest)
-    shutil.copytree(source, dest, symlinks=False, ignore=shutil.ignore_patterns("processor*", "log.*"))
-    _remove_time_directories(dest)
+    copy_case(source, dest)
     if cfg.case_dir is None:
         with FoamFile(dest / "system" / "meshParameters") as params:
             params.update(mesh_parameters(cfg.mesh_scale, cfg.step_height))
-    if not (dest / "constant" / "polyMesh" / "boundary").is_file():
-        run_application(openfoam, "blockMesh", dest)
-    check_case_files(dest, cfg, need_mesh=True)
+    with _named_after(dest, source):
+        info = inspect_case(dest, cfg, openfoam)  # before blockMesh: a broken dictionary is named first
+        if not (dest / "constant" / "polyMesh" / "boundary").is_file():
+            run_application(openfoam, "blockMesh", dest)
+        check_case_files(dest, cfg, need_mesh=True)
     if cfg.inlet_patch not in patch_names(dest):
         raise CaseError(f"case {source}: no patch named {cfg.inlet_patch!r} in the mesh "
                         f"(patches: {', '.join(patch_names(dest))}); set FoamEnvConfig.inlet_patch")
+    return info
+
+
+@contextlib.contextmanager
+def _named_after(copy: Path, source: Path) -> Iterator[None]:
+    """CaseErrors raised about files of ``copy`` name the user's own files in ``source`` instead."""
+    try:
+        yield
+    except CaseError as err:
+        raise CaseError(str(err).replace(str(copy), str(source))) from None
+
+
+def copy_case(source: Path, dest: Path, mesh: bool = True) -> None:
+    """``source`` -> ``dest`` without results (time directories but 0, logs, processor*; the mesh too
+    unless ``mesh``), with the dictionaries of 0/ and system/ uncompressed (the bridge appends to some
+    of them)."""
+    if dest.exists():
+        shutil.rmtree(dest)
+    patterns = shutil.ignore_patterns(*_NOT_COPIED, *(() if mesh else ("polyMesh",)))
+
+    def ignore(directory: str, names: list[str]) -> set[str]:
+        skipped = set(patterns(directory, names))
+        if Path(directory) == source:  # results of earlier runs: every time directory but 0
+            skipped |= {name for name in names if name != "0" and _is_number(name)}
+        return skipped
+
+    shutil.copytree(source, dest, symlinks=False, ignore=ignore)
+    for directory in (dest / "0", dest / "system"):
+        for packed in directory.glob("*.gz") if directory.is_dir() else []:
+            packed.with_suffix("").write_bytes(gzip.decompress(packed.read_bytes()))
+            packed.unlink()
+
+
+def check_case(source: Path, cfg: FoamEnvConfig, openfoam: OpenFOAM, scratch: Path) -> None:
+    """Every check that needs no mesh, on a copy of ``source`` in ``scratch`` (the user's case is never
+    touched: expanding a #codeStream writes into the case). One-line CaseError on the first problem."""
+    check_case_files(source, cfg, need_mesh=False)
+    copy_case(source, scratch / "checked", mesh=False)
+    with _named_after(scratch / "checked", source):
+        inspect_case(scratch / "checked", cfg, openfoam)
 
 
 def check_case_files(case: Path, cfg: FoamEnvConfig, need_mesh: bool) -> None:
@@ -111,16 +206,123 @@ def check_case_files(case: Path, cfg: FoamEnvConfig, need_mesh: bool) -> None:
         raise CaseError(f"case directory {case} does not exist")
     needed = ["system/controlDict", "system/fvSolution", "system/fvSchemes",
               f"0/{cfg.velocity_field}", f"0/{cfg.pressure_field}",
-              *(f"0/{name}" for name in cfg.turbulence_fields)]
+              *(f"0/{name}" for name in _touched_turbulence_fields(cfg))]
     has_mesh = (case / "constant" / "polyMesh" / "boundary").is_file()
-    if need_mesh or not (case / "system" / "blockMeshDict").is_file():
+    if need_mesh or not _exists(case / "system" / "blockMeshDict"):
         needed.append("constant/polyMesh/boundary")
     elif not has_mesh:
         needed.append("system/blockMeshDict")
     for relative in needed:
-        if not (case / relative).is_file():
+        if not _exists(case / relative):
             raise CaseError(f"case {case}: missing {relative} (a simpleFoam case needs system/, 0/ "
                             f"and a mesh or system/blockMeshDict)")
+
+
+def _exists(path: Path) -> bool:
+    return path.is_file() or Path(f"{path}.gz").is_file()
+
+
+def _touched_turbulence_fields(cfg: FoamEnvConfig) -> list[str]:
+    """Turbulence fields whose files the bridge edits (inlet k/omega from a formula)."""
+    if cfg.turbulence_formula is None:
+        return []
+    return [name for name in ("k", "omega") if name in cfg.turbulence_fields]
+
+
+def inspect_case(case: Path, cfg: FoamEnvConfig, openfoam: OpenFOAM) -> CaseInfo:
+    """Read (through ``foamDictionary -expand``) and check what the env needs from ``case``."""
+    control = foamdict.expand(openfoam, case, "system/controlDict")
+    functions = control.get("functions", {})
+    if not isinstance(functions, dict):
+        raise CaseError(f"{case / 'system/controlDict'}: entry 'functions' must be a dictionary "
+                        f"(the bridge adds its function objects to it)")
+    solution = foamdict.expand(openfoam, case, "system/fvSolution")
+    if not isinstance(solution.get("SIMPLE"), dict):
+        raise CaseError(f"{case / 'system/fvSolution'}: no SIMPLE dictionary (simpleFoam needs one)")
+    relaxation = solution.get("relaxationFactors", {})
+    flat = isinstance(relaxation, dict) and bool(relaxation) and not (
+        "fields" in relaxation or "equations" in relaxation)
+    foamdict.expand(openfoam, case, "system/fvSchemes")
+    meshed = (case / "constant" / "polyMesh" / "boundary").is_file()
+    if not meshed and _exists(case / "system" / "blockMeshDict"):
+        foamdict.expand(openfoam, case, "system/blockMeshDict", parse=False)  # a one-line error first
+    foamdict.expand(openfoam, case, f"0/{cfg.pressure_field}")
+    velocity = foamdict.expand(openfoam, case, f"0/{cfg.velocity_field}")
+    changes_inlet = cfg.velocity_range is not None
+    inlet = _inlet_entry(case, cfg, velocity, f"0/{cfg.velocity_field}", changes_inlet)
+    speed, direction, inlet_state = _inlet_velocity(inlet)
+    if changes_inlet:
+        check_turbulence_inlets(case, cfg, openfoam)
+    nu = None if cfg.turbulence_formula is None else _viscosity(case, openfoam)
+    cells_state = _mean_magnitude_squared(velocity.get("internalField", 0.0))
+    return CaseInfo(speed, direction, inlet_state, cells_state, flat, nu)
+
+
+def check_inlet_settable(case: Path, cfg: FoamEnvConfig, openfoam: OpenFOAM) -> None:
+    """One-line CaseError unless the bridge can set the inlet speed of ``case`` (a fixedValue inlet in
+    an ascii 0/U, and fixedValue inlet k/omega where a turbulence formula applies)."""
+    velocity = foamdict.expand(openfoam, case, f"0/{cfg.velocity_field}")
+    _inlet_entry(case, cfg, velocity, f"0/{cfg.velocity_field}", True)
+    check_turbulence_inlets(case, cfg, openfoam)
+
+
+def check_turbulence_inlets(case: Path, cfg: FoamEnvConfig, openfoam: OpenFOAM) -> None:
+    """The inlet k/omega the turbulence formula sets must be fixedValue entries of ascii files."""
+    if cfg.turbulence_formula is None:
+        return
+    for name in (n for n in ("k", "omega") if n in cfg.turbulence_fields):
+        _inlet_entry(case, cfg, foamdict.expand(openfoam, case, f"0/{name}"), f"0/{name}", True)
+
+
+def _inlet_entry(case: Path, cfg: FoamEnvConfig, field: dict[str, Any], relative: str,
+                 must_be_fixed: bool) -> dict[str, Any]:
+    """The inlet's boundary entry of an expanded field file; CaseError if the bridge cannot set it."""
+    try:
+        entry = foamdict.lookup(field, f"boundaryField/{cfg.inlet_patch}")
+    except KeyError:
+        raise CaseError(f"{case / relative}: no boundaryField entry for the inlet patch "
+                        f"{cfg.inlet_patch!r} (set FoamEnvConfig.inlet_patch)") from None
+    if not isinstance(entry, dict):
+        raise CaseError(f"{case / relative}: boundaryField/{cfg.inlet_patch} is not a dictionary")
+    if must_be_fixed:
+        if entry.get("type") != "fixedValue":
+            raise CaseError(f"{case / relative}: boundaryField/{cfg.inlet_patch} is type "
+                            f"{entry.get('type')!r}; setting the inlet needs a fixedValue inlet "
+                            f"(or keep the case's own: inlet_velocity=None)")
+        header = field.get("FoamFile", {})
+        if isinstance(header, dict) and header.get("format", "ascii") != "ascii":
+            raise CaseError(f"{case / relative}: format {header.get('format')}; setting the inlet needs "
+                            f"an ascii field file")
+    return entry
+
+
+def _inlet_velocity(entry: dict[str, Any]) -> tuple[float | None, tuple[float, float, float], float]:
+    """(|mean inlet U| or None, its direction (x if none), mean |U|^2 over the inlet)."""
+    value = entry.get("value")
+    if value is None or isinstance(value, str):
+        return None, (1.0, 0.0, 0.0), 0.0
+    array = np.asarray(value, dtype=float).reshape(-1, 3)
+    mean = array.mean(axis=0)
+    norm = float(np.linalg.norm(mean))
+    direction = tuple(float(c) for c in (mean / norm if norm > 0 else np.array([1.0, 0.0, 0.0])))
+    return norm, direction, _mean_magnitude_squared(value)  # type: ignore[return-value]
+
+
+def _viscosity(case: Path, openfoam: OpenFOAM) -> float:
+    """The case's kinematic viscosity ``nu`` (constant/transportProperties)."""
+    relative = "constant/transportProperties"
+    value = foamdict.expand(openfoam, case, relative).get("nu")
+    value = getattr(value, "value", value)
+    if isinstance(value, list | tuple):
+        value = value[-1]
+    try:
+        nu = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise CaseError(f"{case / relative}: no scalar entry 'nu' (the inlet turbulence formula needs the "
+                        f"kinematic viscosity)") from None
+    if not (math.isfinite(nu) and nu > 0):
+        raise CaseError(f"{case / relative}: nu = {nu!r}; expected a positive viscosity")
+    return nu
 
 
 def run_application(openfoam: OpenFOAM, application: str, case: Path) -> None:
@@ -149,76 +351,74 @@ def cell_count(case: Path) -> int:
     return int(fields["nCells"])
 
 
-def write_episode_case(base: Path, dest: Path, cfg: FoamEnvConfig, inlet_velocity: float) -> None:
-    """Fresh episode case in ``dest`` from the meshed ``base``: inlet values, controlDict, fvSolution."""
+# ----- episode case ---------------------------------------------------------------------------------
+def write_episode_case(base: Path, dest: Path, cfg: FoamEnvConfig, inlet_velocity: float | None,
+                       info: CaseInfo) -> None:
+    """Fresh episode case in ``dest`` from the meshed ``base``: inlet, controlDict, fvSolution, FIFOs.
+
+    ``inlet_velocity`` None keeps the case's own inlet (a user's case without ``inlet_velocity``).
+    """
     if dest.exists():
         shutil.rmtree(dest)
     shutil.copytree(base, dest, ignore=shutil.ignore_patterns("polyMesh", "log.*"))
     (dest / "constant" / "polyMesh").symlink_to((base / "constant" / "polyMesh").resolve())
-    _set_inlet(dest, cfg, inlet_velocity)
-    _write_control_dict(dest, cfg)
+    (dest / "system" / BRIDGE_DIR).mkdir()
+    if inlet_velocity is not None:
+        set_inlet = _set_builtin_inlet if cfg.case_dir is None else _set_user_inlet
+        set_inlet(dest, cfg, info, inlet_velocity)
+    _write_control(dest, cfg, pause=True)
     _write_fv_solution(dest, cfg)
-    os.mkfifo(dest / "system" / RELAXATION_FIFO)
 
 
-def make_uninterrupted(case: Path, cfg: FoamEnvConfig, alpha_u: float, alpha_p: float) -> None:
+def make_uninterrupted(case: Path, cfg: FoamEnvConfig, alpha_u: float, alpha_p: float,
+                       flat: bool = False, functions: bool = True) -> None:
     """Turn an episode case into a plain one: constant factors in a regular file, no pause.
 
-    The factors are written as the bridge would feed them (:func:`relaxation_text` on the case's own
-    factors). The reference run for "chunked == uninterrupted" and for the overhead benchmark.
+    The factors are written as the bridge would feed them (:func:`relaxation_text`). The reference
+    run for "chunked == uninterrupted" and for the overhead benchmark (``functions=False``: not even
+    the bridge's state function objects).
     """
-    fifo = case / "system" / RELAXATION_FIFO
-    fifo.unlink()
-    fifo.write_bytes(relaxation_text(case_relaxation(case), cfg, alpha_u, alpha_p))
-    with FoamFile(case / "system" / "controlDict") as control:
-        del control["functions"][PAUSE_FUNCTION]
+    first = relaxation_fifo(case, 0)
+    first.unlink()
+    first.write_bytes(relaxation_text(cfg, alpha_u, alpha_p, flat))
+    _write_control(case, cfg, pause=False, functions=functions)
 
 
-def relaxation_text(base: Mapping[str, Any], cfg: FoamEnvConfig, alpha_u: float, alpha_p: float) -> bytes:
+def relaxation_text(cfg: FoamEnvConfig, alpha_u: float, alpha_p: float, flat: bool = False) -> bytes:
     """The relaxationFactors entry the bridge feeds through the FIFO for one action.
 
-    ``base``: the case's own factors (:func:`case_relaxation`); they stay in force for every other
-    field. alpha_u relaxes the velocity equation and (unless ``relax_k_omega`` is set) the turbulence
-    equations, alpha_p the pressure field.
+    It is merged into the case's own relaxationFactors, so every factor it does not name stays the
+    case's: alpha_u relaxes the velocity equation, alpha_p the pressure field, and the turbulence
+    fields get ``cfg.k_omega_relaxation`` (a float, alpha_u for FOLLOW_ALPHA_U, nothing for None).
+    ``flat``: the case uses the old flat layout (``relaxationFactors { p 0.3; U 0.7; }``).
     """
-    fields = dict(base.get("fields", {}))
-    equations = dict(base.get("equations", {}))
-    fields[cfg.pressure_field] = float(alpha_p)
-    equations[cfg.velocity_field] = float(alpha_u)
-    turbulence = float(alpha_u) if cfg.relax_k_omega is None else float(cfg.relax_k_omega)
-    for name in cfg.turbulence_fields:
-        equations[name] = turbulence
-    return FoamFile.dumps({"relaxationFactors": {"fields": fields, "equations": equations}},
-                          ensure_header=False) + b"\n"
+    fields = {cfg.pressure_field: float(alpha_p)}
+    equations = {cfg.velocity_field: float(alpha_u)}
+    turbulence = cfg.k_omega_relaxation
+    if turbulence is not None:
+        factor = float(alpha_u) if turbulence == FOLLOW_ALPHA_U else float(turbulence)
+        equations.update({name: factor for name in cfg.turbulence_fields})
+    factors = {**fields, **equations} if flat else {"fields": fields, "equations": equations}
+    return FoamFile.dumps({"relaxationFactors": factors}, ensure_header=False) + b"\n"
 
 
-def initial_state(case: Path, cfg: FoamEnvConfig) -> tuple[float, float]:
-    """(mean |U|^2 over the inlet faces, mean |U|^2 over the cells) of the case's 0/U.
+def initial_state(info: CaseInfo, inlet_velocity: float | None) -> tuple[float, float]:
+    """(mean |U|^2 over the inlet faces, mean |U|^2 over the cells) at iteration 0 of an episode.
 
-    Arithmetic means, as the solver-side function objects compute them later. A uniform internal
-    field counts as uniform over all cells; an inlet without a ``value`` entry contributes 0.
+    Arithmetic means, as the solver-side function objects compute them later. A set inlet speed is
+    uniform over the inlet; otherwise the case's own inlet value counts (0 without one).
     """
-    velocity = FoamFile(case / "0" / cfg.velocity_field)
-    cells = _mean_magnitude_squared(velocity["internalField"])
-    inlet_entry = velocity["boundaryField"].get(cfg.inlet_patch)
-    inlet = 0.0
-    if inlet_entry is not None and "value" in inlet_entry:
-        inlet = _mean_magnitude_squared(inlet_entry["value"])
-    return inlet, cells
+    inlet = info.inlet_state if inlet_velocity is None else float(inlet_velocity) ** 2
+    return inlet, info.cells_state
 
 
 def _mean_magnitude_squared(value: Any) -> float:
+    if isinstance(value, str):
+        return 0.0
     array = np.asarray(value, dtype=float)
     if array.ndim <= 1:
         return float(np.sum(array**2))
     return float(np.mean(np.sum(array**2, axis=-1)))
-
-
-def _remove_time_directories(case: Path) -> None:
-    """Drop every time directory but 0 (a user's case may hold results)."""
-    for child in case.iterdir():
-        if child.is_dir() and child.name != "0" and _is_number(child.name):
-            shutil.rmtree(child)
 
 
 def _is_number(text: str) -> bool:
@@ -228,50 +428,73 @@ def _is_number(text: str) -> bool:
         return False
 
 
-def _set_inlet(case: Path, cfg: FoamEnvConfig, speed: float) -> None:
-    """Inlet U = speed along the inlet's current direction (x if none); inlet k/omega from the speed."""
+def _append(path: Path, text: str) -> None:
+    """Append bridge entries to one of the case's own dictionaries (they override by merging)."""
+    with open(path, "a") as out:
+        out.write(f"\n// ----- appended by foam_bridge for this episode -----\n{text}\n")
+
+
+def _set_user_inlet(case: Path, cfg: FoamEnvConfig, info: CaseInfo, speed: float) -> None:
+    """Inlet U = speed along the case's inlet direction; inlet k/omega from the chosen formula, if any.
+
+    A complete ``fixedValue`` entry under the patch's exact name: it merges into an entry of that name
+    and takes precedence over a regular-expression entry that matched the patch.
+    """
+    vector = " ".join(repr(speed * c) for c in info.inlet_direction)
+    _append(case / "0" / cfg.velocity_field, _inlet_override(cfg, f"uniform ({vector})"))
+    if cfg.turbulence_formula is None:
+        return
+    intensity, ratio = cfg.turbulence_formula
+    values = dict(zip(("k", "omega"), inlet_turbulence(speed, intensity, ratio, info.nu or math.nan),
+                      strict=True))
+    for name in _touched_turbulence_fields(cfg):
+        _append(case / "0" / name, _inlet_override(cfg, f"uniform {values[name]!r}"))
+
+
+def _inlet_override(cfg: FoamEnvConfig, value: str) -> str:
+    return f"boundaryField\n{{\n    {cfg.inlet_patch}\n    {{\n        type fixedValue;\n" \
+           f"        value {value};\n    }}\n}}"
+
+
+def _set_builtin_inlet(case: Path, cfg: FoamEnvConfig, info: CaseInfo, speed: float) -> None:
+    """The built-in template (ours, plain): inlet U along x, inlet and internal k/omega from the paper's
+    formula (the template's walls take ``$internalField``, so the internal value is set in place)."""
     with FoamFile(case / "0" / cfg.velocity_field) as velocity:
-        entry = velocity["boundaryField"].get(cfg.inlet_patch)
-        if entry is None or "value" not in entry:
-            raise CaseError(f"0/{cfg.velocity_field}: the inlet patch {cfg.inlet_patch!r} needs an explicit "
-                            f"boundaryField entry with a value (e.g. fixedValue)")
-        current = np.asarray(entry["value"], dtype=float).reshape(-1, 3).mean(axis=0)
-        norm = float(np.linalg.norm(current))
-        direction = current / norm if norm > 0 else np.array([1.0, 0.0, 0.0])
-        entry["value"] = speed * direction
-    k, omega = inlet_turbulence(speed)
+        velocity["boundaryField"][cfg.inlet_patch]["value"] = speed * np.asarray(info.inlet_direction)
+    intensity, ratio = cfg.turbulence_formula or (TURBULENCE_INTENSITY, VISCOSITY_RATIO)
+    k, omega = inlet_turbulence(speed, intensity, ratio, info.nu or KINEMATIC_VISCOSITY)
     for name, value in (("k", k), ("omega", omega)):
         if name not in cfg.turbulence_fields:
             continue
         with FoamFile(case / "0" / name) as field:
-            inlet = field["boundaryField"].get(cfg.inlet_patch)
-            if inlet is not None and inlet.get("type") == "fixedValue":
-                inlet["value"] = value
-            if cfg.case_dir is None:
-                field["internalField"] = value
+            field["boundaryField"][cfg.inlet_patch]["value"] = value
+            field["internalField"] = value
 
 
-def _write_control_dict(case: Path, cfg: FoamEnvConfig) -> None:
-    with FoamFile(case / "system" / "controlDict") as control:
-        control.update({
-            "application": "simpleFoam", "startFrom": "startTime", "startTime": 0, "stopAt": "endTime",
-            "endTime": cfg.max_iterations, "deltaT": 1, "writeControl": "timeStep",
-            "writeInterval": cfg.max_iterations, "purgeWrite": 0, "writeFormat": "binary",
-            "writePrecision": 17, "runTimeModifiable": True,
-            "OptimisationSwitches": {"fileModificationSkew": 0, "fileModificationChecking": "timeStamp"},
-        })
-        if "functions" in control:
-            del control["functions"]
-        control["functions"] = _function_objects(cfg)
+def _write_control(case: Path, cfg: FoamEnvConfig, pause: bool, functions: bool = True) -> None:
+    """system/foamBridge/controlDict (run control, OptimisationSwitches, functions), #included by
+    the case's controlDict."""
+    settings = {
+        "startFrom": "startTime", "startTime": 0, "stopAt": "endTime", "endTime": cfg.max_iterations,
+        "deltaT": 1, "writeControl": "timeStep", "writeInterval": cfg.max_iterations,
+        "runTimeModifiable": True,
+        "OptimisationSwitches": {"fileModificationSkew": 0, "fileModificationChecking": "timeStamp"},
+        "functions": _function_objects(cfg, case, pause) if functions else {},
+    }
+    if cfg.case_dir is None:  # the built-in case's results are written losslessly; a user's as theirs
+        settings.update({"purgeWrite": 0, "writeFormat": "binary", "writePrecision": 17})
+    target = case / "system" / CONTROL_INCLUDE
+    first = not target.exists()
+    target.write_bytes(FoamFile.dumps(settings, ensure_header=False))
+    if first:
+        _append(case / "system" / "controlDict", f'#include "{CONTROL_INCLUDE}"')
 
 
-def _function_objects(cfg: FoamEnvConfig) -> dict[str, Any]:
+def _function_objects(cfg: FoamEnvConfig, case: Path, pause: bool) -> dict[str, Any]:
     """The paper's state printed every iteration, then the pause after every ``interval`` iterations."""
     every_iteration = {"executeControl": "timeStep", "executeInterval": 1, "writeControl": "timeStep",
                        "writeInterval": 1, "log": True, "writeToFile": False, "writeFields": False}
-    copy = f'"$FOAM_CASE/system/{FVSOLUTION_COPY}"'
-    pauses = [[k, copy] for k in range(cfg.interval, cfg.max_iterations, cfg.interval)]
-    return {
+    functions: dict[str, Any] = {
         "foamBridgeMagSqrU": {"type": "magSqr", "libs": _FIELD_LIBS, "field": cfg.velocity_field,
                               "result": STATE_FIELD, "executeControl": "timeStep", "executeInterval": 1,
                               "writeControl": "none"},
@@ -280,39 +503,42 @@ def _function_objects(cfg: FoamEnvConfig) -> dict[str, Any]:
         INLET_FUNCTION: {"type": "surfaceFieldValue", "libs": _FIELD_LIBS, "fields": [STATE_FIELD],
                          "operation": "average", "regionType": "patch", "name": cfg.inlet_patch,
                          "surfaceFormat": "none", **every_iteration},
-        PAUSE_FUNCTION: {"type": "timeActivatedFileUpdate", "libs": ["libutilityFunctionObjects.so"],
-                         "executeControl": "timeStep", "executeInterval": 1, "writeControl": "none",
-                         "fileToUpdate": '"$FOAM_CASE/system/fvSolution"',
-                         "timeVsFile": pauses or [[cfg.max_iterations + 1, copy]]},
     }
+    boundaries = pause_boundaries(cfg)[1:]
+    if pause and boundaries:
+        copies = [[k, f'"$FOAM_CASE/system/{BRIDGE_DIR}/{_fv_solution_copy(case, k).name}"']
+                  for k in boundaries]
+        functions[PAUSE_FUNCTION] = {
+            "type": "timeActivatedFileUpdate", "libs": ["libutilityFunctionObjects.so"],
+            "executeControl": "timeStep", "executeInterval": 1, "writeControl": "none",
+            "fileToUpdate": '"$FOAM_CASE/system/fvSolution"', "timeVsFile": copies}
+    return functions
 
 
 def _write_fv_solution(case: Path, cfg: FoamEnvConfig) -> None:
-    """SIMPLE settings from cfg; the relaxation factors move to the FIFO (the case's own are kept)."""
+    """SIMPLE settings and the relaxation FIFO appended to fvSolution; one copy + FIFO per boundary."""
+    (case / "system" / SIMPLE_INCLUDE).write_text(_simple_override(cfg))
     path = case / "system" / "fvSolution"
-    with FoamFile(path) as solution:
-        base = solution["relaxationFactors"].as_dict() if "relaxationFactors" in solution else {}
-        if "relaxationFactors" in solution:
-            del solution["relaxationFactors"]
-        solution["SIMPLE"]["consistent"] = cfg.simple_variant == "SIMPLEC"
-        if "residualControl" in solution["SIMPLE"]:
-            del solution["SIMPLE"]["residualControl"]
-        solution["SIMPLE"]["residualControl"] = {name: float(v) for name, v in cfg.convergence.items()}
-    (case / "system" / "relaxationFactors.orig").write_bytes(
-        FoamFile.dumps({"relaxationFactors": _normalise_relaxation(base)}, ensure_header=False))
-    with open(path, "a") as out:
-        out.write(f'\n#include "{RELAXATION_FIFO}"\n')
-    shutil.copyfile(path, case / "system" / FVSOLUTION_COPY)
+    own = path.read_text()
+    for boundary in pause_boundaries(cfg):
+        fifo = relaxation_fifo(case, boundary)
+        includes = f'#include "{SIMPLE_INCLUDE}"\n#include "{BRIDGE_DIR}/{fifo.name}"'
+        target = path if boundary == 0 else _fv_solution_copy(case, boundary)
+        if boundary:
+            target.write_text(own)
+        _append(target, includes)
+        os.mkfifo(fifo)
 
 
-def _normalise_relaxation(base: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
-    """Old-style flat relaxationFactors (``U 0.7; p 0.3;``) become fields (p) and equations (rest)."""
-    if "fields" in base or "equations" in base:
-        return {"fields": dict(base.get("fields", {})), "equations": dict(base.get("equations", {}))}
-    fields = {k: v for k, v in base.items() if k == "p"}
-    return {"fields": fields, "equations": {k: v for k, v in base.items() if k != "p"}}
+def _simple_override(cfg: FoamEnvConfig) -> str:
+    """The case's own SIMPLE dictionary with the bridge's residualControl (and consistent, if set).
 
-
-def case_relaxation(case: Path) -> dict[str, dict[str, Any]]:
-    """The case's own relaxationFactors (moved out of fvSolution by write_episode_case)."""
-    return FoamFile(case / "system" / "relaxationFactors.orig")["relaxationFactors"].as_dict()
+    ``#overwrite`` replaces the entry instead of merging into it, so none of the case's own
+    residualControl entries (regular expressions included) survives next to the criterion.
+    """
+    criterion = "".join(f"        {name} {float(value)!r};\n" for name, value in cfg.convergence.items())
+    consistent = "" if cfg.variant is None else \
+        f"    consistent {'yes' if cfg.variant == 'SIMPLEC' else 'no'};\n"
+    return (f"foamBridgeCaseSIMPLE {{ $SIMPLE; }}\n#overwrite SIMPLE\n{{\n    $foamBridgeCaseSIMPLE;\n"
+            f"    #remove residualControl\n{consistent}    residualControl\n    {{\n{criterion}    }}\n}}\n"
+            f"#remove foamBridgeCaseSIMPLE\n")

@@ -14,7 +14,9 @@ construction.
 
 from __future__ import annotations
 
+import dataclasses
 import math
+import os
 import tempfile
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -31,6 +33,14 @@ TRAIN_CONVERGENCE: Mapping[str, float] = MappingProxyType({"U": 1e-3, "k": 1e-3,
 TEST_CONVERGENCE: Mapping[str, float] = MappingProxyType({"U": 5e-4, "k": 5e-4, "omega": 5e-4, "p": 5e-2})
 
 SIMPLE_VARIANTS = ("SIMPLE", "SIMPLEC")
+#: ``relax_k_omega`` value that relaxes the turbulence fields with alpha_u (the agent's momentum factor).
+FOLLOW_ALPHA_U = "alpha_u"
+#: The built-in case's defaults, the paper's code's (and the tutorial's): SIMPLEC, k/omega relaxed at
+#: 0.8, inlet speed uniform in [35, 65] m/s, inlet turbulence from intensity 6.1e-4 and nu_t/nu 0.009.
+BUILTIN_SIMPLE_VARIANT = "SIMPLEC"
+BUILTIN_RELAX_K_OMEGA = 0.8
+BUILTIN_INLET_VELOCITY = (35.0, 65.0)
+PAPER_INLET_TURBULENCE = (6.1e-4, 0.009)
 #: Smallest mesh_scale of the built-in case measured usable (see FoamEnvConfig.mesh_scale).
 MESH_SCALE_USABLE_MIN = 0.4
 #: Every observation entry is clipped into [-OBSERVATION_BOUND, OBSERVATION_BOUND] (NaN -> the bound):
@@ -59,17 +69,27 @@ class FoamEnvConfig:
             floor moves down), the inlet channel and the domain length stay the same.
         inlet_velocity: inlet speed in m/s: a ``(low, high)`` range sampled uniformly per episode from
             the seeded episode RNG, or a fixed float. ``reset(options={"inlet_velocity": v})``
-            overrides it for one episode. Inlet k and omega follow from it (see foam_bridge.case).
+            overrides it for one episode. ``None`` (default): the built-in case samples
+            BUILTIN_INLET_VELOCITY (35-65 m/s); a user's case keeps its own inlet (changing it is
+            opt-in; it needs a ``fixedValue`` inlet, whose direction is kept).
+        inlet_turbulence: ``(intensity I, nu_t/nu)``: when the inlet speed is set, the inlet k and omega
+            (fixedValue entries) become ``k = 1.5 (I U)^2`` and ``omega = k / (nu_t/nu * nu)``, with
+            ``nu`` read from the case's constant/transportProperties. ``None`` (default): the built-in
+            case uses PAPER_INLET_TURBULENCE (and also sets the internal k and omega); a user's case
+            keeps its own turbulence boundary conditions.
         inlet_patch: name of the inlet patch (its U is set and its mean |U|^2 is observed).
         velocity_field, pressure_field: names of the fields relaxed by alpha_u and alpha_p.
-        turbulence_fields: fields relaxed by ``relax_k_omega`` (or alpha_u); empty for laminar cases.
-        simple_variant: "SIMPLE" (``consistent no``) or "SIMPLEC" (``consistent yes``).
+        turbulence_fields: fields relaxed by ``relax_k_omega``, and set by ``inlet_turbulence``.
+        simple_variant: "SIMPLE" (``consistent no``) or "SIMPLEC" (``consistent yes``). ``None``
+            (default): SIMPLEC for the built-in case, the case's own choice for a user's case.
 
     MDP:
         interval: SIMPLE iterations per env step (the paper: 100).
         max_iterations: iteration cap; reaching it ends the episode as ``truncated``.
         action_low, action_high: box of (alpha_u, alpha_p); actions are clipped into it.
-        relax_k_omega: ``None`` -> the turbulence fields are relaxed with alpha_u; a float -> fixed.
+        relax_k_omega: relaxation factor of the turbulence fields: a float (fixed), or FOLLOW_ALPHA_U
+            (``"alpha_u"``: the agent's momentum factor). ``None`` (default): 0.8 for the built-in case,
+            the case's own factors for a user's case. Every other field keeps the case's own factor.
         convergence: field -> threshold on the solver's initial residual (vector fields: the largest
             component), as simpleFoam's own ``SIMPLE.residualControl``. Default: the paper's training
             criterion (TRAIN_CONVERGENCE); TEST_CONVERGENCE is its test criterion.
@@ -100,17 +120,17 @@ class FoamEnvConfig:
     case_dir: Path | str | None = None
     mesh_scale: float = 1.0
     step_height: float = STEP_HEIGHT_H
-    inlet_velocity: tuple[float, float] | float = (35.0, 65.0)
+    inlet_velocity: tuple[float, float] | float | None = None
     inlet_patch: str = "inlet"
     velocity_field: str = "U"
     pressure_field: str = "p"
     turbulence_fields: tuple[str, ...] = ("k", "omega")
-    simple_variant: str = "SIMPLE"
+    simple_variant: str | None = None
     interval: int = 100
     max_iterations: int = 4000
     action_low: tuple[float, float] = (0.2, 0.2)
     action_high: tuple[float, float] = (0.95, 0.95)
-    relax_k_omega: float | None = None
+    relax_k_omega: float | str | None = None
     convergence: Mapping[str, float] = field(default_factory=lambda: dict(TRAIN_CONVERGENCE))
     residual_features: int = 0
     state_scale: float = U_REF**2
@@ -121,18 +141,24 @@ class FoamEnvConfig:
     work_dir: Path | str | None = None
     keep_cases: bool = False
     openfoam_path: str | None = None
+    inlet_turbulence: tuple[float, float] | None = None
 
     def validate(self) -> FoamEnvConfig:
         """Check every field; raise a one-line ``ValueError`` naming the first bad one. Returns self."""
         _check(self.mesh_scale > 0 and math.isfinite(self.mesh_scale), "mesh_scale", self.mesh_scale)
         _check(self.step_height > 0 and math.isfinite(self.step_height), "step_height", self.step_height)
-        low, high = self.velocity_range
-        _check(0 < low <= high and math.isfinite(high), "inlet_velocity", self.inlet_velocity)
+        if self.velocity_range is not None:
+            low, high = self.velocity_range
+            _check(0 < low <= high and math.isfinite(high), "inlet_velocity", self.inlet_velocity)
+        if self.inlet_turbulence is not None:
+            values = tuple(self.inlet_turbulence)
+            _check(len(values) == 2 and all(v > 0 and math.isfinite(v) for v in values), "inlet_turbulence",
+                   self.inlet_turbulence, "(intensity > 0, nu_t/nu > 0)")
         for name in ("inlet_patch", "velocity_field", "pressure_field"):
             value = getattr(self, name)
             _check(isinstance(value, str) and value != "", name, value, "a non-empty name")
-        _check(self.simple_variant in SIMPLE_VARIANTS, "simple_variant", self.simple_variant,
-               f"one of {SIMPLE_VARIANTS}")
+        _check(self.simple_variant is None or self.simple_variant in SIMPLE_VARIANTS, "simple_variant",
+               self.simple_variant, f"None or one of {SIMPLE_VARIANTS}")
         _check(_is_int(self.interval) and self.interval >= 1, "interval", self.interval, "an integer >= 1")
         _check(_is_int(self.max_iterations) and self.max_iterations >= self.interval, "max_iterations",
                self.max_iterations, "an integer >= interval")
@@ -141,8 +167,10 @@ class FoamEnvConfig:
         for lo, hi in zip(self.action_low, self.action_high, strict=True):
             _check(0 < lo <= hi <= 1, "action_low/action_high", (self.action_low, self.action_high),
                    "0 < low <= high <= 1")
-        if self.relax_k_omega is not None:
-            _check(0 < self.relax_k_omega <= 1, "relax_k_omega", self.relax_k_omega, "in (0, 1]")
+        if self.relax_k_omega is not None and self.relax_k_omega != FOLLOW_ALPHA_U:
+            factor = self.relax_k_omega
+            _check(isinstance(factor, int | float) and 0 < factor <= 1, "relax_k_omega", factor,
+                   f"None, {FOLLOW_ALPHA_U!r} or a factor in (0, 1]")
         _check(len(self.convergence) > 0 and all(v > 0 for v in self.convergence.values()), "convergence",
                dict(self.convergence), "a non-empty {field: threshold > 0}")
         _check(_is_int(self.residual_features) and self.residual_features >= 0, "residual_features",
@@ -157,13 +185,51 @@ class FoamEnvConfig:
         return self
 
     @property
-    def velocity_range(self) -> tuple[float, float]:
-        """(low, high) of the per-episode inlet velocity; low == high for a fixed velocity."""
-        if isinstance(self.inlet_velocity, int | float):
-            return float(self.inlet_velocity), float(self.inlet_velocity)
-        if len(self.inlet_velocity) != 2:
-            raise ValueError(f"inlet_velocity: expected a float or (low, high), got {self.inlet_velocity!r}")
-        return float(self.inlet_velocity[0]), float(self.inlet_velocity[1])
+    def builtin(self) -> bool:
+        """True for the built-in backward-facing step (``case_dir`` None)."""
+        return self.case_dir is None
+
+    @property
+    def velocity_range(self) -> tuple[float, float] | None:
+        """(low, high) of the per-episode inlet velocity (low == high for a fixed one); None: the
+        user's case keeps its own inlet."""
+        chosen = self.inlet_velocity
+        if chosen is None:
+            return BUILTIN_INLET_VELOCITY if self.builtin else None
+        if isinstance(chosen, int | float) and not isinstance(chosen, bool):
+            return float(chosen), float(chosen)
+        if isinstance(chosen, str) or len(chosen) != 2:
+            raise ValueError(f"FoamEnvConfig.inlet_velocity: expected a float or (low, high), got {chosen!r}")
+        return float(chosen[0]), float(chosen[1])
+
+    @property
+    def variant(self) -> str | None:
+        """The SIMPLE variant the bridge sets; None: the user's case keeps its own."""
+        if self.simple_variant is None and self.builtin:
+            return BUILTIN_SIMPLE_VARIANT
+        return self.simple_variant
+
+    @property
+    def k_omega_relaxation(self) -> float | str | None:
+        """The turbulence fields' factor the bridge sets (a float or FOLLOW_ALPHA_U); None: the case's own."""
+        if self.relax_k_omega is None and self.builtin:
+            return BUILTIN_RELAX_K_OMEGA
+        return self.relax_k_omega
+
+    @property
+    def turbulence_formula(self) -> tuple[float, float] | None:
+        """(intensity, nu_t/nu) for the inlet k/omega when the inlet speed is set; None: keep the case's."""
+        if self.inlet_turbulence is None and self.builtin:
+            return PAPER_INLET_TURBULENCE
+        return None if self.inlet_turbulence is None else tuple(float(v) for v in self.inlet_turbulence)
+
+    def with_absolute_paths(self) -> FoamEnvConfig:
+        """This config with ``case_dir`` and ``work_dir`` resolved against the current directory.
+
+        Workers (spawned processes, Ray actors on other nodes) and OpenFOAM (run with ``-case`` from
+        inside the case) do not share the caller's working directory: relative paths must not travel.
+        """
+        return dataclasses.replace(self, case_dir=_absolute(self.case_dir), work_dir=_absolute(self.work_dir))
 
     @property
     def observation_size(self) -> int:
@@ -192,10 +258,15 @@ def work_root(cfg: FoamEnvConfig, work_dir: Path | str | None = None,
     """
     chosen = work_dir if work_dir is not None else cfg.work_dir
     if chosen is None:
-        return Path(tempfile.mkdtemp(prefix=prefix)), True
-    root = Path(chosen)
+        return Path(tempfile.mkdtemp(prefix=prefix)).resolve(), True
+    root = _absolute(chosen)
     root.mkdir(parents=True, exist_ok=True)
     return root, False
+
+
+def _absolute(path: Path | str | os.PathLike[str] | None) -> Path | None:
+    """``path`` made absolute (symlinks resolved), ``~`` expanded; None stays None."""
+    return None if path is None else Path(path).expanduser().resolve()
 
 
 def _is_int(value: object) -> bool:

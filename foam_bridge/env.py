@@ -38,12 +38,14 @@ from __future__ import annotations
 
 import contextlib
 import fcntl
+import math
 import os
 import shutil
 import signal
 import time
 from collections import deque
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import Any, BinaryIO
 
@@ -53,8 +55,8 @@ from foam_bridge import case as foam_case
 from foam_bridge.config import OBSERVATION_BOUND, FoamEnvConfig, failure_reward, work_root
 from foam_bridge.logparse import LogParser, field_residual
 from foam_bridge.openfoam import find_openfoam
-from foam_bridge.solver import DIVERGED, EXITED, HUNG, PAUSED, FoamSolver
-from jaxsimrl.envs.protocol import BoxSpec, Step
+from foam_bridge.solver import DIVERGED, EXITED, HUNG, MISSED, PAUSED, FoamSolver
+from foam_bridge.spaces import BoxSpec, Step
 
 #: Every value of ``info["outcome"]``.
 OUTCOMES = ("running", "converged", "truncated", "crashed", "diverged", "hung")
@@ -82,8 +84,9 @@ class FoamCaseEnv:
     ``reset(seed=None, options=None) -> (obs, info)``: ends any running episode (kills the solver's
     process group), samples the inlet velocity from the episode RNG (re-seeded when ``seed`` is given;
     seeded with ``env_id`` before the first seed, so runs are reproducible; ``options={"inlet_velocity":
-    v}`` fixes it), writes the case. The observation is the initial state (iteration 0) read from 0/U.
-    The solver starts on the first step.
+    v}`` fixes it; a user's case without ``inlet_velocity`` keeps its own inlet, and "inlet_velocity"
+    reports its speed, NaN if it has no value), writes the case. The observation is the initial state
+    (iteration 0) read from 0/U. The solver starts on the first step.
 
     ``step(action) -> (obs, reward, terminated, truncated, info)``; ``info`` has "iterations" (K),
     "residuals" ({field: latest initial residual}), "outcome" (one of OUTCOMES), "cause" (failure text
@@ -95,7 +98,7 @@ class FoamCaseEnv:
     """
 
     def __init__(self, cfg: FoamEnvConfig, work_dir: Path | str | None = None, env_id: int = 0) -> None:
-        self.cfg = cfg.validate()
+        self.cfg = cfg = cfg.validate().with_absolute_paths()
         self.env_id = env_id
         self.openfoam = find_openfoam(cfg.openfoam_path)
         parent, temporary = work_root(cfg, work_dir)
@@ -105,7 +108,7 @@ class FoamCaseEnv:
         self.base = self.root / "base"
         self.case_dir = self.root / "episode"
         try:
-            foam_case.build_base_case(cfg, self.base, self.openfoam)
+            self.case_info = foam_case.build_base_case(cfg, self.base, self.openfoam)
         except BaseException:
             self._release_directories()
             raise
@@ -132,19 +135,17 @@ class FoamCaseEnv:
         self._stop_solver()
         if seed is not None:
             self._rng = np.random.default_rng(seed)
-        options = options or {}
-        if options.get("inlet_velocity") is not None:
-            velocity = float(options["inlet_velocity"])
-        else:
-            velocity = float(self._rng.uniform(*self.cfg.velocity_range))
-        foam_case.write_episode_case(self.base, self.case_dir, self.cfg, velocity)
-        self._relaxation = foam_case.case_relaxation(self.case_dir)
-        inlet, cells = foam_case.initial_state(self.case_dir, self.cfg)
+        velocity = self._episode_velocity(options or {})
+        foam_case.write_episode_case(self.base, self.case_dir, self.cfg, velocity, self.case_info)
+        inlet, cells = foam_case.initial_state(self.case_info, velocity)
+        if velocity is None:  # the user's case keeps its inlet: report its speed (NaN if it has none)
+            velocity = math.nan if self.case_info.inlet_speed is None else self.case_info.inlet_speed
         # the state limit is relative to this episode's inlet, so it is as tight at 25 m/s as at 75 m/s
-        state_limit = self.cfg.state_divergence_ratio * max(inlet, velocity**2)
+        reference = max(inlet, cells, 0.0 if math.isnan(velocity) else velocity**2)
+        state_limit = self.cfg.state_divergence_ratio * reference if reference > 0 else math.inf
         self._parser = LogParser(foam_case.CELLS_FUNCTION, foam_case.INLET_FUNCTION,
                                  self.cfg.divergence_threshold, state_limit)
-        self._iterations = 0
+        self._iterations = self._target = 0
         self._features: deque[np.ndarray] = deque(
             [np.zeros(len(self.cfg.convergence))] * self.cfg.residual_features,
             maxlen=self.cfg.residual_features or None)
@@ -160,7 +161,7 @@ class FoamCaseEnv:
             raise RuntimeError("step() on a finished episode: call reset() first")
         alpha = np.clip(_two_factors(action), self.cfg.action_low, self.cfg.action_high)
         self._episode["actions"].append([float(alpha[0]), float(alpha[1])])
-        text = foam_case.relaxation_text(self._relaxation, self.cfg, alpha[0], alpha[1])
+        text = foam_case.relaxation_text(self.cfg, alpha[0], alpha[1], self.case_info.flat_relaxation)
         event = self._advance(text)
         # stop before accounting: the whole output is then parsed, whatever had been read so far
         code = self._stop_solver() if event != PAUSED else None
@@ -218,23 +219,36 @@ class FoamCaseEnv:
         """Process-group id of the running solver (None between episodes); for tests and monitoring."""
         return None if self._solver is None else self._solver.pgid
 
+    def _episode_velocity(self, options: dict[str, Any]) -> float | None:
+        """This episode's inlet speed: the option, else drawn from the config's range; None: the case's."""
+        if options.get("inlet_velocity") is not None:
+            velocity = float(options["inlet_velocity"])
+            if not (math.isfinite(velocity) and velocity > 0):
+                raise ValueError(f"options['inlet_velocity']: expected a speed > 0, got {velocity!r}")
+            if self.cfg.case_dir is not None and self.cfg.velocity_range is None:
+                foam_case.check_inlet_settable(self.base, self.cfg, self.openfoam)
+            return velocity
+        if self.cfg.velocity_range is None:
+            return None
+        return float(self._rng.uniform(*self.cfg.velocity_range))
+
     def _advance(self, text: bytes) -> str:
-        """Feed the factors and run to the next pause; returns the solver event."""
+        """Feed the factors and run to the next pause; returns the solver event.
+
+        The next pause is exactly ``interval`` iterations on (or the cap): the solver either pauses
+        there or the step ends with the event that says why not (see foam_bridge.solver).
+        """
         deadline = time.monotonic() + self.cfg.step_timeout_s
+        self._target = self._iterations + self.cfg.interval
         if self._solver is None:
-            fifo = self.case_dir / "system" / foam_case.RELAXATION_FIFO
+            fifo = partial(foam_case.relaxation_fifo, self.case_dir)
             self._solver = FoamSolver(self.case_dir, self.openfoam, self._parser, fifo)
             self._solver.start()
-            event = self._solver.wait(self.cfg.step_timeout_s)  # start-up: the first fvSolution read
+            event = self._solver.wait(self.cfg.step_timeout_s, 0)  # start-up: the first fvSolution read
             if event != PAUSED:
                 return event
-        target = self._iterations + self.cfg.interval
-        while True:
-            self._solver.release(text)
-            event = self._solver.wait(max(deadline - time.monotonic(), 0.0))
-            # any re-read before the boundary (none is scheduled) gets the same factors
-            if event != PAUSED or self._parser.completed >= target:
-                return event
+        self._solver.release(text)
+        return self._solver.wait(max(deadline - time.monotonic(), 0.0), self._target)
 
     def _classify(self, event: str, code: int | None) -> tuple[str, str, int]:
         """(outcome, cause, K) of a solver event, from the fully parsed output of a stopped solver.
@@ -247,6 +261,10 @@ class FoamCaseEnv:
             return "running", "", parser.completed
         if parser.failed_at is not None:
             return "diverged", f"diverged: {parser.diverged}", parser.failed_at
+        if event == MISSED or parser.completed > self._target:
+            return "crashed", (f"missed the pause after iteration {self._target}: the solver went on to "
+                               f"iteration {parser.completed} without reading its next factors"), \
+                min(parser.completed, self._target)
         if event == HUNG:
             return "hung", (f"watchdog: no progress within step_timeout_s={cfg.step_timeout_s} s "
                             f"(last iteration started: {parser.iteration})"), parser.iteration

@@ -20,6 +20,7 @@ import io
 import math
 import os
 import shutil
+import textwrap
 import time
 from collections import deque
 from collections.abc import Callable, Sequence
@@ -28,11 +29,14 @@ from typing import Any
 
 import numpy as np
 
+from foam_bridge.atomic import atomic_write_bytes, atomic_write_text
 from foam_bridge.backends import BAD_INPUT_ERRORS, WORKER_DIED, Reply, Request, make_backend
 from foam_bridge.config import FoamEnvConfig, work_root
-from jaxsimrl.runs.atomic import atomic_write_bytes, atomic_write_text
 
 GRID_COLUMNS = ("alpha_u", "alpha_p", "iterations", "outcome", "wall_time_s")
+TITLE_FONTSIZE = 10
+MIN_FIGURE_WIDTH_IN = 6.0
+LEGEND_HEIGHT_IN = 0.35
 GRID_SEED = 0  # fixed inlet velocity makes the seed irrelevant to the physics; fixed for reproducibility
 
 
@@ -94,7 +98,7 @@ def run_grid(
     alpha_u, alpha_p = check_factors(alpha_u, "alpha_u"), check_factors(alpha_p, "alpha_p")
     if isinstance(pool, bool) or not isinstance(pool, int) or pool < 1:
         raise ValueError(f"pool must be an integer >= 1, got {pool!r}")
-    cfg = grid_config(cfg, alpha_u, alpha_p)
+    cfg = grid_config(cfg, alpha_u, alpha_p).with_absolute_paths()  # workers need no shared cwd
     pairs = [(u, p) for u in alpha_u for p in alpha_p]
     slots = min(pool, len(pairs))
     root, temporary = work_root(cfg, work_dir, prefix="foam_grid_")
@@ -184,8 +188,22 @@ def cell_label(cell: GridCell) -> str:
     return f"{cell.outcome}\n@{cell.iterations}"
 
 
+def fit_title(title: str, width_in: float, fontsize: float) -> str:
+    """``title`` with each line wrapped to fit a figure ``width_in`` inches wide (whatever the grid size)."""
+    # ~0.6 em per character is a safe average for DejaVu Sans; keep a margin of half an inch.
+    chars = max(int((width_in - 0.5) * 72 / (0.6 * fontsize)), 10)
+    return "\n".join(textwrap.fill(line, chars) for line in title.splitlines())
+
+
 def plot_grid(cells: Sequence[GridCell], path: str | os.PathLike[str], title: str = "") -> None:
     """Heatmap of iterations (rows alpha_u, columns alpha_p) written atomically as a PNG to ``path``."""
+    buffer = io.BytesIO()
+    heatmap_figure(cells, title).savefig(buffer, format="png", dpi=120)
+    atomic_write_bytes(path, buffer.getvalue())
+
+
+def heatmap_figure(cells: Sequence[GridCell], title: str = "") -> Any:
+    """The heatmap as a matplotlib Figure (Agg canvas); every text fits inside it, whatever the grid."""
     from matplotlib import colormaps
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.colors import Normalize
@@ -198,7 +216,8 @@ def plot_grid(cells: Sequence[GridCell], path: str | os.PathLike[str], title: st
     for cell in cells:
         if cell.outcome == "converged":
             values[us.index(cell.alpha_u), ps.index(cell.alpha_p)] = cell.iterations
-    fig = Figure(figsize=(1.3 * len(ps) + 3.2, 1.0 * len(us) + 2.2))
+    # at least MIN_FIGURE_WIDTH_IN wide, so that the legend's three entries fit on a 1 x 1 grid too
+    fig = Figure(figsize=(max(1.3 * len(ps) + 3.2, MIN_FIGURE_WIDTH_IN), 1.0 * len(us) + 2.2))
     FigureCanvasAgg(fig)
     ax = fig.add_subplot()
     finite = values[np.isfinite(values)]
@@ -225,12 +244,10 @@ def plot_grid(cells: Sequence[GridCell], path: str | os.PathLike[str], title: st
     ax.set_yticks(range(len(us)), [f"{u:g}" for u in us])
     ax.set_xlabel(r"$\alpha_p$ (pressure)")
     ax.set_ylabel(r"$\alpha_u$ (momentum)")
-    ax.set_title(title, fontsize=10)
-    ax.legend(handles=[Patch(facecolor="0.6", hatch="xx", edgecolor="0.4", label="crashed / diverged / hung"),
-                       Patch(facecolor="0.85", hatch="//", edgecolor="0.4", label="not converged (cap)"),
-                       Patch(fill=False, edgecolor="blue", linewidth=3, label="best")],
-              loc="upper center", bbox_to_anchor=(0.5, -0.18), ncol=3, fontsize=8, frameon=False)
-    fig.tight_layout()
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=120)
-    atomic_write_bytes(path, buffer.getvalue())
+    fig.suptitle(fit_title(title, fig.get_figwidth(), TITLE_FONTSIZE), fontsize=TITLE_FONTSIZE)
+    handles = [Patch(facecolor="0.6", hatch="xx", edgecolor="0.4", label="crashed / diverged / hung"),
+               Patch(facecolor="0.85", hatch="//", edgecolor="0.4", label="not converged (cap)"),
+               Patch(fill=False, edgecolor="blue", linewidth=3, label="best")]
+    fig.legend(handles=handles, loc="lower center", ncol=3, fontsize=8, frameon=False)
+    fig.tight_layout(rect=(0, LEGEND_HEIGHT_IN / fig.get_figheight(), 1, 1))  # the legend below the axes
+    return fig

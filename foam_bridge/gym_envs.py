@@ -29,10 +29,10 @@ from gymnasium.vector.utils import batch_space
 
 from foam_bridge.batched import SEED_BOUND, BatchedFoamEnv
 from foam_bridge.config import FoamEnvConfig
-from jaxsimrl.envs.protocol import BoxSpec
+from foam_bridge.spaces import BoxSpec
 
 CONFIG_FIELDS = tuple(f.name for f in dataclasses.fields(FoamEnvConfig))
-_TUPLE_FIELDS = ("inlet_velocity", "action_low", "action_high", "turbulence_fields")
+_TUPLE_FIELDS = ("inlet_velocity", "action_low", "action_high", "turbulence_fields", "inlet_turbulence")
 
 
 def config_from_kwargs(kwargs: dict[str, Any]) -> FoamEnvConfig:

@@ -54,7 +54,7 @@ def find_openfoam(path: str | None = None) -> OpenFOAM:
     Raises OpenFOAMNotFoundError (one line, saying how to install OpenFOAM) when either is missing.
     """
     search_path = os.environ.get("PATH", "") if path is None else path
-    for application in ("simpleFoam", "blockMesh"):
+    for application in ("simpleFoam", "blockMesh", "foamDictionary"):
         if shutil.which(application, path=search_path) is None:
             raise OpenFOAMNotFoundError(
                 f"OpenFOAM's {application} was not found on PATH={search_path!r}: {INSTALL_HINT}"

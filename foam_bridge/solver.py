@@ -1,29 +1,43 @@
 """The persistent, pausable simpleFoam process of one episode (+ watchdog, process-group kill).
 
-simpleFoam pauses itself: whenever it (re-)reads ``system/fvSolution`` it opens the FIFO
-``system/foamBridgeRelaxation`` (#included by fvSolution) and blocks until the bridge writes the
-relaxation factors into it and closes it (see foam_bridge.case for what makes it re-read exactly after
-every ``interval`` iterations). The bridge notices the pause without any race: opening a FIFO for
-writing with O_NONBLOCK succeeds only while a reader has it open. The reader of a read already served
-may linger (a SIGSTOPped solver never closes it), so a reader counts as a new pause only if it is the
-first one or the solver printed a new "Re-reading object fvSolution" line (flushed before it opens the
-FIFO again) since the last pause; otherwise the bridge closes its end again without writing.
+simpleFoam pauses itself: whenever it (re-)reads ``system/fvSolution`` it opens the FIFO that
+fvSolution #includes, ``system/foamBridge/relaxation.<K>`` (one per pause boundary K, see
+foam_bridge.case), and blocks until the bridge writes the relaxation factors into it and closes it.
+The bridge notices the pause at K without any race: opening FIFO K for writing with O_NONBLOCK
+succeeds only while a reader has it open, and only the solver's read after iteration K opens it. A
+solver that runs past K without opening it (a missed pause) is stopped at once and reported
+(``MISSED``): a step is exactly ``interval`` iterations or it fails with a cause.
+
+OpenFOAM also watches the files fvSolution #includes: writing into a FIFO changes its mtime, and now
+and then (depending on when it took the FIFO's timestamp) the solver re-reads fvSolution for that
+alone, opening the FIFO it has just been served again. So the bridge puts the FIFO's mtime back
+before it closes its end, and should such a re-read happen anyway (it prints "Re-reading object
+fvSolution" first), serves it the same factors again: a re-read never changes the factors of a step.
 
 While the solver runs, its stdout+stderr is read as it arrives, fed to a LogParser and appended to
-``log.simpleFoam`` in the case. A step has a wall-clock deadline (the watchdog): a solver that neither
-prints nor waits on the FIFO past it is reported as hung. The solver is started in its own session
-(process group); ``kill()`` SIGKILLs the whole group and reaps it, so nothing outlives an episode.
+``log.simpleFoam`` in the case. Every wait has a wall-clock deadline (the watchdog): a solver that
+neither pauses nor exits before it is reported as hung, and so is one that closed its output but
+does not exit.
+
+No solver outlives its owner: it runs in its own session (process group); ``kill()`` SIGKILLs the
+whole group while the group leader is still unreaped (a reaped leader's group id may be reused by an
+unrelated process group, so the bridge never waits for the leader before the kill: exits are
+observed with ``waitid(WNOWAIT)``), then reaps it. As a second line of defence the solver is started
+with ``PR_SET_PDEATHSIG = SIGKILL``: the kernel kills it when the thread that started it dies (a
+SIGKILLed worker, a crashed driver), even before anything else notices.
 """
 
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import errno
 import os
 import select
 import signal
 import subprocess
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 from foam_bridge.logparse import LogParser
@@ -34,16 +48,41 @@ QUIET_POLL_S = 0.002
 #: After reading output, let more accumulate for this long: simpleFoam flushes every line, and waking
 #: up once per line would cost the bridge (and a loaded machine) far more CPU than parsing does.
 READ_BATCH_S = 0.005
-#: Upper bound on reading a killed solver's output to EOF (only a stray inheritor of the pipe could
-#: hold it open; the whole process group is dead).
+#: Upper bound on reading a killed solver's output to EOF and on reaping it (only a stray inheritor
+#: of the pipe could hold it open; the whole process group is dead).
 EOF_TIMEOUT_S = 5.0
-PAUSED, EXITED, HUNG, DIVERGED = "paused", "exited", "hung", "diverged"
+PAUSED, EXITED, HUNG, DIVERGED, MISSED = "paused", "exited", "hung", "diverged", "missed"
+_PR_SET_PDEATHSIG = 1
+_LIBC = ctypes.CDLL(None, use_errno=True)
+
+
+def die_with_parent() -> Callable[[], None]:
+    """A ``preexec_fn`` that makes the child get SIGKILL when its parent (thread) dies.
+
+    Everything is looked up before the fork: the child only calls prctl and getppid. If the parent
+    died before prctl took effect, the child exits at once.
+    """
+    prctl, parent, getppid, exit_now = _LIBC.prctl, os.getpid(), os.getppid, os._exit
+    kill = int(signal.SIGKILL)
+
+    def preexec() -> None:
+        prctl(_PR_SET_PDEATHSIG, kill, 0, 0, 0)
+        if getppid() != parent:
+            exit_now(1)
+
+    return preexec
 
 
 class FoamSolver:
-    """One simpleFoam run in ``case``; ``start()``, then alternate ``wait()`` and ``release()``."""
+    """One simpleFoam run in ``case``; ``start()``, then alternate ``wait()`` and ``release()``.
 
-    def __init__(self, case: Path, openfoam: OpenFOAM, parser: LogParser, fifo: Path) -> None:
+    ``fifo(K)`` is the path of the FIFO the solver reads its factors from at the pause after
+    iteration K (K = 0: the start-up read).
+    """
+
+    def __init__(
+        self, case: Path, openfoam: OpenFOAM, parser: LogParser, fifo: Callable[[int], Path]
+    ) -> None:
         self.case = case
         self.openfoam = openfoam
         self.parser = parser
@@ -51,7 +90,9 @@ class FoamSolver:
         self.process: subprocess.Popen[bytes] | None = None
         self.pgid: int | None = None
         self._writer: int | None = None
-        self._served_rereads = -1  # fvSolution re-reads seen at the last pause; -1: none yet
+        self._writer_fifo: Path | None = None
+        #: (FIFO, factors, fvSolution re-reads seen) of the last release: what a re-read is served.
+        self._served: tuple[Path, bytes, int] | None = None
         self._log = None
         #: Seconds the solver sat waiting on the bridge: from its last output before a pause (an upper
         #: bound of the detection latency) to the release. The benchmark's bridge-overhead measure.
@@ -59,77 +100,94 @@ class FoamSolver:
         self._last_output = self._paused_at = time.monotonic()
 
     @property
-    def returncode(self) -> int | None:
-        """The solver's exit status (negative: killed by that signal); None while it runs."""
-        return None if self.process is None else self.process.poll()
+    def exited(self) -> bool:
+        """Whether the solver has exited (observed without reaping it; see the module docstring)."""
+        return self.process is not None and _exit_status(self.process.pid) is not None
 
     def start(self) -> None:
-        """Launch simpleFoam in a new session; it soon waits on the FIFO for the first factors."""
+        """Launch simpleFoam in a new session; it soon waits on FIFO 0 for the first factors."""
         self._log = open(self.case / "log.simpleFoam", "ab")  # noqa: SIM115 (closed in kill)
         self.process = subprocess.Popen(
             [self.openfoam.executable("simpleFoam"), "-case", str(self.case)], cwd=self.case,
             env=self.openfoam.environment(self.case), stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-            stderr=subprocess.STDOUT, start_new_session=True,
+            stderr=subprocess.STDOUT, start_new_session=True, preexec_fn=die_with_parent(),  # noqa: PLW1509
         )
         self.pgid = self.process.pid
         assert self.process.stdout is not None
         os.set_blocking(self.process.stdout.fileno(), False)
 
-    def wait(self, timeout_s: float) -> str:
-        """Run until the solver pauses (PAUSED), exits (EXITED), diverges or passes the deadline."""
+    def wait(self, timeout_s: float, boundary: int) -> str:
+        """Run until the solver pauses after iteration ``boundary`` (PAUSED), exits (EXITED), diverges,
+        runs past ``boundary`` without pausing (MISSED) or passes the deadline (HUNG)."""
         assert self.process is not None and self.process.stdout is not None
         out = self.process.stdout.fileno()
         deadline = time.monotonic() + timeout_s
         while True:
             if self.parser.diverged:
                 return DIVERGED
+            if self.parser.completed > boundary:
+                return MISSED
             remaining = deadline - time.monotonic()
             if remaining <= 0:
                 return HUNG
             readable, _, _ = select.select([out], [], [], min(QUIET_POLL_S, remaining))
             if readable:
                 if not self._pump(out):
-                    self.process.wait()
                     self.parser.finish()
-                    return EXITED
+                    return EXITED if self._await_exit(deadline) else HUNG
                 time.sleep(READ_BATCH_S)
                 continue
-            writer = self._open_fifo_writer()
+            writer = self._open_fifo_writer(self.fifo(boundary))
             if writer is None:
+                self._serve_reread()
                 continue
             self._drain(out)
-            if self.parser.fvsolution_rereads > self._served_rereads:
-                self._writer, self._served_rereads = writer, self.parser.fvsolution_rereads
-                self._paused_at = time.monotonic()
-                self.idle_s += self._paused_at - self._last_output
-                return DIVERGED if self.parser.diverged else PAUSED
-            os.close(writer)  # the reader of the read already served: not a new pause
+            self._writer, self._writer_fifo = writer, self.fifo(boundary)
+            self._paused_at = time.monotonic()
+            self.idle_s += self._paused_at - self._last_output
+            if self.parser.diverged:
+                return DIVERGED
+            return MISSED if self.parser.completed != boundary else PAUSED
 
     def release(self, text: bytes) -> None:
         """Hand the waiting solver its relaxation factors; it resumes once the FIFO is closed."""
-        if self._writer is None:
+        if self._writer is None or self._writer_fifo is None:
             raise RuntimeError("the solver is not paused")
-        try:
-            os.set_blocking(self._writer, True)
-            os.write(self._writer, text)
-        except BrokenPipeError:
-            pass  # the solver died meanwhile; the next wait() reports its exit
-        finally:
-            os.close(self._writer)
-            self._writer = None
-            self.idle_s += time.monotonic() - self._paused_at
+        _feed(self._writer, self._writer_fifo, text)
+        self._served = (self._writer_fifo, text, self.parser.fvsolution_rereads)
+        self._writer = self._writer_fifo = None
+        self.idle_s += time.monotonic() - self._paused_at
+
+    def _serve_reread(self) -> None:
+        """Serve the last factors again to a re-read of the FIFO they were served from (see the module
+        docstring). Only after a new "Re-reading" line: a reader there before it is the stale one of
+        the read already served, which gets nothing."""
+        if self._served is None or self.parser.fvsolution_rereads <= self._served[2]:
+            return
+        fifo, text, _ = self._served
+        writer = self._open_fifo_writer(fifo)
+        if writer is not None:
+            _feed(writer, fifo, text)
+            self._served = (fifo, text, self.parser.fvsolution_rereads)
 
     def kill(self) -> int | None:
         """SIGKILL the solver's whole process group, reap it, read its output to EOF, close everything.
 
-        Reading to EOF after the kill makes what the parser saw independent of how far the bridge had
-        read when it decided to stop the solver. Returns the exit status (None if it never started).
+        The group is killed before the leader is reaped (its id cannot have been reused while the
+        leader is a zombie). Reading to EOF after the kill makes what the parser saw independent of how
+        far the bridge had read when it decided to stop the solver. Returns the exit status (None if it
+        never started; -9 if it could not be reaped within EOF_TIMEOUT_S, which only a process stuck in
+        the kernel does).
         """
         code = None
         if self.process is not None and self.pgid is not None:
-            with contextlib.suppress(ProcessLookupError):
-                os.killpg(self.pgid, signal.SIGKILL)
-            code = self.process.wait()
+            if self.process.returncode is None:  # never reaped: the group id is still ours
+                with contextlib.suppress(ProcessLookupError, PermissionError):
+                    os.killpg(self.pgid, signal.SIGKILL)
+            try:
+                code = self.process.wait(EOF_TIMEOUT_S)
+            except subprocess.TimeoutExpired:
+                code = -signal.SIGKILL
             if self.process.stdout is not None and not self.process.stdout.closed:
                 self._drain_to_eof(self.process.stdout.fileno())
                 self.process.stdout.close()
@@ -140,6 +198,14 @@ class FoamSolver:
             self._log.close()
             self._log = None
         return code
+
+    def _await_exit(self, deadline: float) -> bool:
+        """After EOF: whether the solver exits before the deadline (observed, not reaped)."""
+        while not self.exited:
+            if time.monotonic() >= deadline:
+                return False
+            time.sleep(QUIET_POLL_S)
+        return True
 
     def _pump(self, out: int) -> bool:
         """Read what is available (maybe nothing); False at end of stream."""
@@ -171,13 +237,36 @@ class FoamSolver:
             if not readable or not self._pump(out):
                 return
 
-    def _open_fifo_writer(self) -> int | None:
+    @staticmethod
+    def _open_fifo_writer(fifo: Path) -> int | None:
         try:
-            return os.open(self.fifo, os.O_WRONLY | os.O_NONBLOCK)
+            return os.open(fifo, os.O_WRONLY | os.O_NONBLOCK)
         except OSError as error:
             if error.errno in (errno.ENXIO, errno.ENOENT):
                 return None
             raise
+
+
+def _feed(writer: int, fifo: Path, text: bytes) -> None:
+    """Write ``text`` into the FIFO and close it, its mtime put back first (no watch-triggered re-read)."""
+    try:
+        before = os.stat(fifo)
+        os.set_blocking(writer, True)
+        os.write(writer, text)
+        os.utime(fifo, ns=(before.st_atime_ns, before.st_mtime_ns))
+    except (BrokenPipeError, FileNotFoundError):
+        pass  # the solver died (or the case was broken) meanwhile; the next wait() reports it
+    finally:
+        os.close(writer)
+
+
+def _exit_status(pid: int) -> int | None:
+    """The exit status of our child ``pid`` if it has exited, without reaping it (None if running)."""
+    try:
+        result = os.waitid(os.P_PID, pid, os.WEXITED | os.WNOHANG | os.WNOWAIT)
+    except ChildProcessError:
+        return -1  # already reaped
+    return None if result is None else result.si_status
 
 
 def run_to_end(case: Path, openfoam: OpenFOAM, parser: LogParser, timeout_s: float) -> tuple[int, float]:
@@ -192,7 +281,7 @@ def run_to_end(case: Path, openfoam: OpenFOAM, parser: LogParser, timeout_s: flo
         result = subprocess.run([openfoam.executable("simpleFoam"), "-case", str(case)], cwd=case,
                                 env=openfoam.environment(case), stdin=subprocess.DEVNULL, stdout=out,
                                 stderr=subprocess.STDOUT, start_new_session=True, timeout=timeout_s,
-                                check=False)
+                                preexec_fn=die_with_parent(), check=False)  # noqa: PLW1509
     wall = time.monotonic() - start
     parser.feed(log.read_bytes())
     parser.finish()

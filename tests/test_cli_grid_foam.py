@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import csv
 
+import matplotlib.text
 import numpy as np
 import pytest
 from foam_marks import needs_openfoam
@@ -20,6 +21,7 @@ from foam_bridge.grid import (
     cell_label,
     check_factors,
     grid_config,
+    heatmap_figure,
     plot_grid,
     read_grid_csv,
     write_grid_csv,
@@ -54,6 +56,7 @@ GOOD = ("--alpha-u", "0.7", "--alpha-p", "0.5")
         ((*GOOD, "--max-iterations", "50"), "max_iterations"),
         ((*GOOD, "--criterion", "strict"), "invalid choice"),
         ((*GOOD, "--relax-k-omega", "1.2"), "(0, 1]"),
+        ((*GOOD, "--relax-k-omega", "alpha_p"), "(0, 1]"),
     ],
 )
 def test_bad_arguments_are_one_line_exit_2(capsys, tmp_path, argv, needle):
@@ -123,6 +126,48 @@ def test_heatmap_is_a_png_of_the_grid(tmp_path):
     image = matplotlib.image.imread(path)
     assert image.ndim == 3 and image.shape[0] > 100 and image.shape[1] > 100
     assert image[..., :3].std() > 0.05  # drawn, not blank
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (1, 2), (2, 1), (4, 4)])
+def test_heatmap_text_fits_inside_the_figure_whatever_the_grid(shape):
+    us, ps = [0.5 + 0.1 * i for i in range(shape[0])], [0.5 + 0.1 * j for j in range(shape[1])]
+    cells = [GridCell(u, p, 400 + i, "converged" if i else "crashed", 1.0)
+             for i, (u, p) in enumerate((u, p) for u in us for p in ps)]
+    title = ("SIMPLE iterations to convergence, constant factors\nSIMPLEC, k/omega 0.8, train criterion, "
+             "mesh scale 1, V = 44.2 m/s")
+    fig = heatmap_figure(cells, title)
+    renderer = fig.canvas.get_renderer()
+    fig.draw(renderer)
+    width, height = fig.bbox.width, fig.bbox.height
+    texts = [t for t in fig.findobj(matplotlib.text.Text) if t.get_visible() and t.get_text().strip()]
+    assert any("SIMPLEC" in t.get_text() for t in texts)  # the title is among the texts checked
+    for text in texts:
+        box = text.get_window_extent(renderer)
+        assert box.x0 >= 0 and box.x1 <= width and box.y0 >= 0 and box.y1 <= height, text.get_text()
+
+
+@needs_openfoam
+def test_default_grid_cell_runs_the_papers_simplec_with_k_omega_at_0_8(capsys, tmp_path):
+    from foam_bridge.env import FoamCaseEnv
+
+    cells = {}
+    plain = ("--simple-variant", "SIMPLE", "--relax-k-omega", "alpha_u")
+    for name, extra in (("default", ()), ("plain", plain)):
+        argv = ("--alpha-u", "0.95", "--alpha-p", "0.95", "--mesh-scale", "0.4", "--max-iterations", "400",
+                *extra, "--out", str(tmp_path / name))
+        code, err, _ = run_cli(capsys, *argv)
+        assert code == 0, err
+        (cells[name],) = read_grid_csv(tmp_path / name / "grid.csv")
+    explicit = FoamEnvConfig(mesh_scale=0.4, simple_variant="SIMPLEC", relax_k_omega=0.8,
+                             inlet_velocity=44.2, max_iterations=400)
+    with FoamCaseEnv(explicit, work_dir=tmp_path / "direct") as env:
+        env.reset(seed=0)
+        while True:
+            _, _, terminated, truncated, info = env.step([0.95, 0.95])
+            if terminated or truncated:
+                break
+    assert (cells["default"].outcome, cells["default"].iterations) == ("converged", info["iterations"])
+    assert (cells["plain"].outcome, cells["plain"].iterations) != ("converged", info["iterations"])
 
 
 @needs_openfoam

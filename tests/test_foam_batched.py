@@ -180,18 +180,3 @@ def test_killed_worker_ends_only_its_episode_and_is_replaced(tmp_path):
 def _is_zombie(pid: int) -> bool:
     with open(f"/proc/{pid}/stat") as handle:
         return handle.read().split(")")[-1].split()[0] == "Z"
-
-
-@needs_openfoam
-def test_protocol_form_is_numpy_in_numpy_out(tmp_path):
-    with BatchedFoamEnv(COARSE, 2, pool=2, work_dir=tmp_path) as env:
-        proto = env.protocol()
-        obs, state = proto.reset(np.array([0, 5], np.uint32), None)
-        assert obs.shape == (2, 1) and obs.dtype == np.float32
-        assert state.iterations.tolist() == [0, 0]
-        step = proto.step(None, state, np.tile(SAFE_ACTION, (2, 1)), None)
-        assert step.reward.dtype == np.float32 and step.reward.tolist() == [-100.0, -100.0]
-        assert step.state.iterations.tolist() == [100, 100]
-        assert step.terminated.dtype == bool and step.truncated.shape == (2,)
-        with pytest.raises(ValueError, match="params"):
-            proto.step(None, step.state, np.tile(SAFE_ACTION, (2, 1)), FoamEnvConfig())

@@ -20,6 +20,7 @@ from foam_bridge.config import (
 )
 from foam_bridge.env import bounded_observation, observation_spec
 from foam_bridge.errors import OpenFOAMNotFoundError
+from foam_bridge.foamdict import expand
 from foam_bridge.openfoam import find_openfoam
 
 needs_openfoam = pytest.mark.skipif(shutil.which("blockMesh") is None, reason="OpenFOAM not on PATH")
@@ -79,47 +80,57 @@ def test_double_step_height_moves_only_the_floor_behind_the_step(tmp_path: Path)
 
 @pytest.mark.openfoam
 @needs_openfoam
-def test_episode_case_dictionaries(tmp_path: Path) -> None:
-    cfg = FoamEnvConfig(mesh_scale=0.25, simple_variant="SIMPLEC", interval=50, max_iterations=300,
-                        convergence=dict(TEST_CONVERGENCE))
-    foam_case.build_base_case(cfg, tmp_path / "base", find_openfoam())
+def test_episode_case_dictionaries_as_openfoam_reads_them(tmp_path: Path) -> None:
+    cfg = FoamEnvConfig(mesh_scale=0.25, interval=50, max_iterations=300, convergence=dict(TEST_CONVERGENCE))
+    openfoam = find_openfoam()
+    info = foam_case.build_base_case(cfg, tmp_path / "base", openfoam)
     episode = tmp_path / "episode"
-    foam_case.write_episode_case(tmp_path / "base", episode, cfg, 50.0)
+    foam_case.write_episode_case(tmp_path / "base", episode, cfg, 50.0, info)
     k, omega = foam_case.inlet_turbulence(50.0)
-    velocity = FoamFile(episode / "0" / "U")["boundaryField"]["inlet"]["value"]
+    velocity = expand(openfoam, episode, "0/U")["boundaryField"]["inlet"]["value"]
     np.testing.assert_allclose(velocity, [50.0, 0.0, 0.0])
     for name, value in (("k", k), ("omega", omega)):
-        field = FoamFile(episode / "0" / name)
+        field = expand(openfoam, episode, f"0/{name}")
         assert field["boundaryField"]["inlet"]["value"] == pytest.approx(value, rel=1e-12)
         assert field["internalField"] == pytest.approx(value, rel=1e-12)
-    assert foam_case.initial_state(episode, cfg) == pytest.approx((2500.0, 1e-16))
+    assert foam_case.initial_state(info, 50.0) == pytest.approx((2500.0, 1e-16))
 
-    control = FoamFile(episode / "system" / "controlDict")
+    control = expand(openfoam, episode, "system/controlDict")
     assert (control["endTime"], control["writeFormat"], control["runTimeModifiable"]) == (300, "binary", True)
     assert control["OptimisationSwitches"]["fileModificationSkew"] == 0
     functions = control["functions"]
     assert functions[foam_case.INLET_FUNCTION]["name"] == "inlet"
     pauses = [entry[0] for entry in functions[foam_case.PAUSE_FUNCTION]["timeVsFile"]]
     assert pauses == [50, 100, 150, 200, 250]
+    assert foam_case.pause_boundaries(cfg) == [0, *pauses]
 
-    solution = FoamFile(episode / "system" / "fvSolution")
-    assert solution["SIMPLE"]["consistent"] is True
-    assert solution["SIMPLE"]["residualControl"].as_dict() == dict(TEST_CONVERGENCE)
-    assert "relaxationFactors" not in solution
-    text = (episode / "system" / "fvSolution").read_text()
-    assert text.rstrip().endswith(f'#include "{foam_case.RELAXATION_FIFO}"')
-    assert stat.S_ISFIFO((episode / "system" / foam_case.RELAXATION_FIFO).stat().st_mode)
+    for boundary in foam_case.pause_boundaries(cfg):
+        assert stat.S_ISFIFO(foam_case.relaxation_fifo(episode, boundary).stat().st_mode)
+    foam_case.make_uninterrupted(episode, cfg, 0.7, 0.3)  # FIFO 0 -> a file: readable without a solver
+    solution = expand(openfoam, episode, "system/fvSolution")
+    assert solution["relaxationFactors"] == {"fields": {"p": 0.3},
+                                             "equations": {"U": 0.7, "k": 0.8, "omega": 0.8}}
+    assert foam_case.PAUSE_FUNCTION not in expand(openfoam, episode, "system/controlDict")["functions"]
+    assert solution["SIMPLE"]["consistent"] is True  # the built-in case's default: SIMPLEC
+    assert solution["SIMPLE"]["residualControl"] == dict(TEST_CONVERGENCE)  # the template's own is gone
+    assert solution["SIMPLE"]["nNonOrthogonalCorrectors"] == 0  # the rest of SIMPLE is the case's
+    assert "foamBridgeCaseSIMPLE" not in solution
     assert (episode / "constant" / "polyMesh").is_symlink()
 
 
-@pytest.mark.parametrize("relax_k_omega, expected", [(None, 0.7), (0.8, 0.8)])
-def test_relaxation_text(relax_k_omega: float | None, expected: float) -> None:
-    cfg = FoamEnvConfig(relax_k_omega=relax_k_omega)
-    base = {"fields": {"T": 0.5}, "equations": {'".*"': 0.6}}
-    text = foam_case.relaxation_text(base, cfg, 0.7, 0.3)
-    factors = FoamFile.loads(text)["relaxationFactors"]
-    assert factors["fields"] == {"T": 0.5, "p": 0.3}
-    assert factors["equations"] == {'".*"': 0.6, "U": 0.7, "k": expected, "omega": expected}
+@pytest.mark.parametrize("relax_k_omega, expected", [(None, 0.8), ("alpha_u", 0.7), (0.6, 0.6)])
+def test_relaxation_text_of_the_builtin_case(relax_k_omega, expected) -> None:
+    factors = FoamFile.loads(foam_case.relaxation_text(FoamEnvConfig(relax_k_omega=relax_k_omega), 0.7, 0.3))
+    assert factors["relaxationFactors"] == {"fields": {"p": 0.3}, "equations": {"U": 0.7, "k": expected,
+                                                                                "omega": expected}}
+
+
+def test_relaxation_text_of_a_user_case_names_only_what_the_agent_controls() -> None:
+    own = FoamEnvConfig(case_dir="case")  # None: the case's own k/omega factors stay in force
+    factors = FoamFile.loads(foam_case.relaxation_text(own, 0.7, 0.3))["relaxationFactors"]
+    assert factors == {"fields": {"p": 0.3}, "equations": {"U": 0.7}}
+    flat = FoamFile.loads(foam_case.relaxation_text(own, 0.7, 0.3, flat=True))["relaxationFactors"]
+    assert flat == {"p": 0.3, "U": 0.7}
 
 
 def test_missing_openfoam_is_a_one_line_error_saying_how_to_install(tmp_path: Path) -> None:
@@ -131,6 +142,7 @@ def test_missing_openfoam_is_a_one_line_error_saying_how_to_install(tmp_path: Pa
 @pytest.mark.parametrize("overrides, field", [
     ({"mesh_scale": 0.0}, "mesh_scale"), ({"interval": 0}, "interval"),
     ({"max_iterations": 50}, "max_iterations"), ({"simple_variant": "PISO"}, "simple_variant"),
+    ({"relax_k_omega": "omega"}, "relax_k_omega"), ({"inlet_turbulence": (0.01, -1.0)}, "inlet_turbulence"),
     ({"action_low": (0.5, 0.2), "action_high": (0.4, 0.95)}, "action_low"),
     ({"inlet_velocity": (65.0, 35.0)}, "inlet_velocity"), ({"convergence": {}}, "convergence"),
     ({"inlet_patch": ""}, "inlet_patch"), ({"relax_k_omega": 1.5}, "relax_k_omega"),

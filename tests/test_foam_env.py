@@ -74,8 +74,8 @@ def test_chunked_equals_uninterrupted_and_rewards_sum_to_minus_iterations(tmp_pa
         rewards, info = _run_episode(env, BEST)
         chunked = env.parser.history
         reference_case = tmp_path / "reference"
-        foam_case.write_episode_case(env.base, reference_case, cfg, U_REF)
-        foam_case.make_uninterrupted(reference_case, cfg, *BEST)
+        foam_case.write_episode_case(env.base, reference_case, env.cfg, U_REF, env.case_info)
+        foam_case.make_uninterrupted(reference_case, env.cfg, *BEST)
         reference = LogParser(foam_case.CELLS_FUNCTION, foam_case.INLET_FUNCTION)
         code, _ = run_to_end(reference_case, env.openfoam, reference, timeout_s=120)
     finally:
@@ -167,7 +167,7 @@ def test_solver_crash_mid_run_is_recorded_and_the_next_episode_works(tmp_path: P
         pgid = env.solver_pgid
         assert pgid is not None and _group_alive(pgid)
         # break the case under the running solver: it resumes, then its next fvSolution read fails
-        (env.case_dir / "system" / foam_case.RELAXATION_FIFO).unlink()
+        foam_case.relaxation_fifo(env.case_dir, 50).unlink()
         _, reward, terminated, truncated, info = env.step(BEST)
         assert (terminated, truncated, reward) == (True, False, -2000.0)
         assert info["outcome"] == "crashed" and "FOAM FATAL" in info["cause"]
@@ -255,10 +255,12 @@ def test_user_case_with_a_renamed_inlet_patch(tmp_path: Path) -> None:
     for name in ("U", "p", "k", "omega", "nut"):
         field = user_case / "0" / name
         field.write_text(field.read_text().replace("    inlet\n    {", "    entry\n    {"))
-    with pytest.raises(CaseError, match="no patch named 'inlet'.*entry"):
+    message = f"^{user_case}/0/U: no boundaryField entry for the inlet patch 'inlet'"
+    with pytest.raises(CaseError, match=message):
         FoamCaseEnv(_cfg(tmp_path / "wrong", case_dir=user_case))
     assert not (tmp_path / "wrong" / "env_0").exists()
-    env = FoamCaseEnv(_cfg(tmp_path / "right", case_dir=user_case, inlet_patch="entry"))
+    # the template has no relaxationFactors of its own: a user's copy of it must name the k/omega factor
+    env = FoamCaseEnv(_cfg(tmp_path / "right", case_dir=user_case, inlet_patch="entry", relax_k_omega=0.8))
     try:
         obs, _ = env.reset(options={"inlet_velocity": 50.0})
         assert obs[0] == pytest.approx(50.0**2 / U_REF**2)

@@ -5,11 +5,18 @@ A backend runs ``Request`` s (see ``worker``) on ``pool`` workers; env ``i`` alw
 then gathers the replies in request order. A worker that dies (or does not answer within the batch
 deadline, in which case it is killed) answers every request of the batch with
 ``Reply(ok=False, worker_died=True, error="worker died")`` and is replaced by a fresh one; its envs
-are rebuilt on their next request. The other workers are not touched.
+are rebuilt on their next request. The other workers are not touched. ``run`` does not raise for a
+worker fault, not even when a replacement cannot be started (the worker then counts as dead again on
+the next batch).
+
+Every batch carries a sequence number and its replies carry it back: a batch whose call was
+interrupted (Ctrl-C, an exception in the caller between send and receive) leaves its replies in the
+worker's channel, and the next batch drops them instead of taking them for its own.
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
 from abc import ABC, abstractmethod
 from typing import Any
@@ -41,6 +48,12 @@ def batch_deadline_s(cfg: Any, requests: list[Request]) -> float:
     return sum(2 * step_s + (RESET_ALLOWANCE_S if r.method == "reset" else 30.0) for r in requests)
 
 
+def close_deadline_s(cfg: Any, envs: int) -> float:
+    """How long ``close`` waits for a worker with ``envs`` envs: long enough for a step it may still be
+    running (an interrupted batch) to end by its own watchdog, and for its envs to close."""
+    return batch_deadline_s(cfg, [Request(0, "step", {})] * envs) + 30.0
+
+
 class Backend(ABC):
     """``pool`` workers hosting ``num_envs`` envs; see the module docstring."""
 
@@ -51,6 +64,7 @@ class Backend(ABC):
         self.cfg = cfg
         self.num_envs = num_envs
         self.pool = pool
+        self._seq = 0
 
     def worker_of(self, env_id: int) -> int:
         """Index of the worker that hosts env ``env_id``."""
@@ -58,6 +72,8 @@ class Backend(ABC):
 
     def run(self, requests: list[Request]) -> list[Reply]:
         """Run a batch (at most one request per env is sensible); replies come back in request order."""
+        self._seq += 1
+        requests = [request._replace(seq=self._seq) for request in requests]
         groups: dict[int, list[int]] = {}
         for position, request in enumerate(requests):
             groups.setdefault(self.worker_of(request.env_id), []).append(position)
@@ -67,8 +83,10 @@ class Backend(ABC):
             batch = [requests[p] for p in positions]
             answers = self._receive(worker, batch, sent[worker], batch_deadline_s(self.cfg, batch))
             if answers is None:
-                self._replace(worker)
-                answers = [Reply(r.env_id, False, error=WORKER_DIED, worker_died=True) for r in batch]
+                with contextlib.suppress(Exception):  # a failed start shows as a dead worker next time
+                    self._replace(worker)
+                answers = [Reply(r.env_id, False, error=WORKER_DIED, worker_died=True, seq=r.seq)
+                           for r in batch]
             for position, answer in zip(positions, answers, strict=True):
                 replies[position] = answer
         return replies  # type: ignore[return-value]
@@ -81,7 +99,8 @@ class Backend(ABC):
     def _receive(
         self, worker: int, batch: list[Request], handle: Any, deadline_s: float
     ) -> list[Reply] | None:
-        """The worker's replies, or None if it died or missed the deadline (then it must be dead)."""
+        """The worker's replies to ``batch`` (replies of earlier batches, which carry an older ``seq``,
+        are dropped), or None if it died or missed the deadline (then it must be dead)."""
 
     @abstractmethod
     def _replace(self, worker: int) -> None:

@@ -3,7 +3,13 @@
 "spawn" (not fork) so a parent that has already initialised JAX or threads is safe. Each worker serves
 batches of requests over a pipe until it gets ``None`` or the pipe closes (the driver died); either
 way it closes its envs, so their solvers die with it. A worker that dies is noticed through its
-process sentinel and replaced (see ``base``).
+process sentinel and replaced (see ``base``); its solvers die with it (PR_SET_PDEATHSIG, see
+foam_bridge.solver), and whatever is still running in its env directories is killed before the
+replacement takes them over.
+
+``close()`` asks every worker to close its envs and waits for each as long as a step it may still be
+running could take (``close_deadline_s``: past the step watchdog); only then is a worker killed,
+and the processes left in its env directories with it, before the directories may be removed.
 """
 
 from __future__ import annotations
@@ -11,14 +17,18 @@ from __future__ import annotations
 import contextlib
 import multiprocessing as mp
 import signal
+import tempfile
+import time
 from multiprocessing.connection import Connection, wait
 from pathlib import Path
 from typing import Any
 
-from foam_bridge.backends.base import Backend
-from foam_bridge.backends.worker import EnvHost, Reply, Request
+from foam_bridge.backends.base import Backend, close_deadline_s
+from foam_bridge.backends.reaper import kill_processes_under
+from foam_bridge.backends.worker import EnvHost, Reply, Request, env_dir
 
-JOIN_TIMEOUT_S = 30.0
+#: Reaping a SIGKILLed worker takes milliseconds; this only bounds a process stuck in the kernel.
+KILL_JOIN_S = 10.0
 
 
 def preflight(cfg: Any) -> None:
@@ -26,12 +36,13 @@ def preflight(cfg: Any) -> None:
 
     Only for the local backend: Ray nodes may have OpenFOAM and the case where the driver has not.
     """
-    from foam_bridge.case import check_case_files
+    from foam_bridge.case import check_case
     from foam_bridge.openfoam import find_openfoam
 
-    find_openfoam(cfg.openfoam_path)
+    openfoam = find_openfoam(cfg.openfoam_path)
     if cfg.case_dir is not None:
-        check_case_files(Path(cfg.case_dir), cfg, need_mesh=False)
+        with tempfile.TemporaryDirectory(prefix="foam_bridge_check_") as scratch:
+            check_case(Path(cfg.case_dir), cfg, openfoam, Path(scratch))
 
 
 def _serve(conn: Connection, cfg: Any, work_dir: Path) -> None:
@@ -77,8 +88,11 @@ class LocalBackend(Backend):
         self._procs[worker], self._conns[worker] = proc, parent_end
 
     def _send(self, worker: int, batch: list[Request]) -> bool:
+        conn = self._conns[worker]
+        if conn is None:  # its replacement could not be started
+            return False
         try:
-            self._conns[worker].send(batch)
+            conn.send(batch)
             return True
         except (BrokenPipeError, OSError):
             return False
@@ -89,22 +103,35 @@ class LocalBackend(Backend):
         conn, proc = self._conns[worker], self._procs[worker]
         if not handle:
             return None
-        ready = wait([conn, proc.sentinel], timeout=deadline_s)
-        if conn in ready:
+        deadline = time.monotonic() + deadline_s
+        while True:
+            ready = wait([conn, proc.sentinel], timeout=max(deadline - time.monotonic(), 0.0))
+            if conn not in ready:
+                if not ready:  # missed the deadline: a hung worker counts as a dead one
+                    proc.kill()
+                return None
             try:
-                return conn.recv()
+                answers = conn.recv()
             except (EOFError, OSError):
                 return None
-        if not ready:  # missed the deadline: a hung worker counts as a dead one
-            proc.kill()
-        return None
+            if answers and answers[0].seq == batch[0].seq:
+                return answers
+            # the replies of an interrupted earlier batch: drop them, ours come next
 
     def _replace(self, worker: int) -> None:
+        self._stop(worker)
+        self._start(worker)
+
+    def _stop(self, worker: int) -> None:
+        """Kill a worker, reap it, and kill whatever still runs in its env directories."""
         proc, conn = self._procs[worker], self._conns[worker]
         proc.kill()
-        proc.join(JOIN_TIMEOUT_S)
-        conn.close()
-        self._start(worker)
+        proc.join(KILL_JOIN_S)
+        if conn is not None:
+            conn.close()
+        self._conns[worker] = None
+        for env_id in range(worker, self.num_envs, self.pool):
+            kill_processes_under(env_dir(self.work_dir, env_id))
 
     def worker_pid(self, env_id: int) -> int:
         return self._procs[self.worker_of(env_id)].pid
@@ -114,11 +141,12 @@ class LocalBackend(Backend):
         for _, conn in live:  # ask every worker first, so they close their envs in parallel
             with contextlib.suppress(BrokenPipeError, OSError):
                 conn.send(None)
+        deadline = time.monotonic() + close_deadline_s(self.cfg, -(-self.num_envs // self.pool))
         for worker, conn in live:
             proc = self._procs[worker]
-            proc.join(JOIN_TIMEOUT_S)
+            proc.join(max(deadline - time.monotonic(), 0.0))
             if proc.is_alive():
-                proc.kill()
-                proc.join(JOIN_TIMEOUT_S)
-            conn.close()
-            self._conns[worker] = None
+                self._stop(worker)
+            else:
+                conn.close()
+                self._conns[worker] = None

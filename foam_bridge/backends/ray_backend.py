@@ -3,7 +3,13 @@
 Each actor hosts its envs exactly like a local worker (``worker.EnvHost``), with the case directories
 under ``work_dir`` on the actor's own node. ``ray`` is imported only when this backend is used. If Ray
 is not initialised yet, ``ray.init(address=ray_address)`` is called (``None`` starts a local instance).
-An actor that dies (RayActorError) or misses the batch deadline is killed and replaced.
+An actor that dies (RayActorError) or misses the batch deadline is killed and replaced; its solvers
+die with its process (PR_SET_PDEATHSIG, see foam_bridge.solver), on whatever node it ran.
+
+Security: Ray's processes listen on every interface. Ray >= 2.59 (RAY_MIN_VERSION, required) turns on
+token authentication for a local instance started by ``ray.init()``; an older Ray would let anyone who
+can reach the ports run code as this user, so it is refused. For a multi-node cluster, start every node
+with ``RAY_AUTH_MODE=token`` (see the README).
 """
 
 from __future__ import annotations
@@ -12,8 +18,20 @@ import contextlib
 from pathlib import Path
 from typing import Any
 
-from foam_bridge.backends.base import Backend
+from foam_bridge.backends.base import Backend, close_deadline_s
 from foam_bridge.backends.worker import EnvHost, Reply, Request
+
+#: The first Ray that authenticates a local instance by default (token authentication).
+RAY_MIN_VERSION = (2, 59)
+
+
+def check_ray_version(version: str) -> None:
+    """One-line ValueError unless ``version`` (ray.__version__) is at least RAY_MIN_VERSION."""
+    parts = tuple(int(p) for p in version.split(".")[:2] if p.isdigit())
+    if parts < RAY_MIN_VERSION:
+        wanted = ".".join(map(str, RAY_MIN_VERSION))
+        raise ValueError(f"backend='ray' needs ray>={wanted} (token authentication of its ports), found "
+                         f"ray {version}: pip install 'ray>={wanted}'")
 
 
 class RayBackend(Backend):
@@ -27,6 +45,7 @@ class RayBackend(Backend):
         super().__init__(cfg, num_envs, pool)
         import ray
 
+        check_ray_version(ray.__version__)
         if not ray.is_initialized():
             ray.init(address=ray_address, include_dashboard=False, log_to_driver=False)
         self._ray = ray
@@ -70,7 +89,7 @@ class RayBackend(Backend):
         closing = [actor.close.remote() for actor in self._actors if actor is not None]
         # A dead actor has nothing left to close (its solvers are reaped by its successor): kill anyway.
         with contextlib.suppress(Exception):
-            self._ray.get(closing, timeout=60)
+            self._ray.get(closing, timeout=close_deadline_s(self.cfg, -(-self.num_envs // self.pool)))
         for worker, actor in enumerate(self._actors):
             if actor is not None:
                 self._ray.kill(actor, no_restart=True)

@@ -30,6 +30,8 @@ class Request(NamedTuple):
     env_id: int
     method: str
     args: dict[str, Any]
+    #: The batch's sequence number (set by Backend.run); its replies carry it back.
+    seq: int = 0
 
 
 class Reply(NamedTuple):
@@ -46,6 +48,7 @@ class Reply(NamedTuple):
     worker_died: bool = False
     kind: str = ""
     where: str = ""
+    seq: int = 0
 
 
 def env_dir(work_dir: Path, env_id: int) -> Path:
@@ -76,16 +79,17 @@ class EnvHost:
                 env = self.envs.pop(request.env_id, None)
                 if env is not None:
                     env.close()
-                return Reply(request.env_id, True)
+                return Reply(request.env_id, True, seq=request.seq)
             if request.method not in METHODS:
                 raise ValueError(f"unknown method {request.method!r}")
             value = getattr(self._env(request.env_id), request.method)(**request.args)
-            return Reply(request.env_id, True, value)
+            return Reply(request.env_id, True, value, seq=request.seq)
         except Exception as err:  # noqa: BLE001 - reported to the driver, which owns the policy
             last = traceback.extract_tb(err.__traceback__)[-1:]
             where = f"{last[0].filename}:{last[0].lineno}" if last else ""
             kind = type(err).__name__
-            return Reply(request.env_id, False, error=f"{kind}: {err}", kind=kind, where=where)
+            return Reply(request.env_id, False, error=f"{kind}: {err}", kind=kind, where=where,
+                         seq=request.seq)
 
     def handle_batch(self, requests: list[Request]) -> list[Reply]:
         """Run requests in order (envs of one worker share its core, so sequential is right)."""

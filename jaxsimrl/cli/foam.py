@@ -30,9 +30,16 @@ def relaxation_factor(text: str) -> float:
     return value
 
 
+def k_omega_factor(text: str) -> float | str:
+    """argparse type: a relaxation factor in (0, 1] or ``alpha_u`` (k and omega follow alpha_u)."""
+    from foam_bridge.config import FOLLOW_ALPHA_U
+
+    return FOLLOW_ALPHA_U if text == FOLLOW_ALPHA_U else relaxation_factor(text)
+
+
 def register(subparsers: Any) -> None:
     """Add the ``grid-foam`` subcommand."""
-    from foam_bridge.config import MESH_SCALE_USABLE_MIN
+    from foam_bridge.config import BUILTIN_RELAX_K_OMEGA, FOLLOW_ALPHA_U, MESH_SCALE_USABLE_MIN
 
     parser = subparsers.add_parser(
         "grid-foam",
@@ -49,13 +56,15 @@ def register(subparsers: Any) -> None:
                         f"{MESH_SCALE_USABLE_MIN:g}: coarser meshes diverge with the factors that are best "
                         "on the full mesh, a different control problem")
     parser.add_argument("--pool", type=positive_int, default=1, help="worker processes (default 1)")
-    parser.add_argument("--simple-variant", choices=("SIMPLE", "SIMPLEC"), default="SIMPLE")
+    parser.add_argument("--simple-variant", choices=("SIMPLE", "SIMPLEC"), default=None,
+                        help="pressure-velocity coupling (default: SIMPLEC, the paper's code's)")
     parser.add_argument("--inlet-velocity", type=positive_float, default=44.2,
                         help="inlet velocity in m/s (default 44.2, the paper's U_ref)")
     parser.add_argument("--max-iterations", type=positive_int, default=4000,
                         help="iteration cap per cell (default 4000)")
-    parser.add_argument("--relax-k-omega", type=relaxation_factor, default=None, metavar="F",
-                        help="fixed relaxation factor of k and omega (default: follow alpha_u)")
+    parser.add_argument("--relax-k-omega", type=k_omega_factor, default=None, metavar="F",
+                        help=f"relaxation factor of k and omega, in (0, 1], or {FOLLOW_ALPHA_U!r} to follow "
+                        f"alpha_u (default: {BUILTIN_RELAX_K_OMEGA:g}, the paper's code's)")
     parser.add_argument("--criterion", choices=CRITERIA, default="train",
                         help="convergence criterion: the paper's train (1e-3) or test (5e-4) thresholds")
     parser.add_argument("--out", required=True, help="output directory (created if missing)")
@@ -127,8 +136,9 @@ def run_grid_foam(args: argparse.Namespace) -> int:
         except ValueError as err:  # a case the env rejects: the same for every cell
             fail(str(err))
     write_grid_csv(cells, out / "grid.csv")
-    k_omega = "k/omega follow alpha_u" if args.relax_k_omega is None else f"k/omega {args.relax_k_omega:g}"
-    title = (f"SIMPLE iterations to convergence, constant factors\n{args.simple_variant}, {k_omega}, "
+    factor = cfg.k_omega_relaxation
+    k_omega = "k/omega follow alpha_u" if isinstance(factor, str) else f"k/omega {factor:g}"
+    title = (f"SIMPLE iterations to convergence, constant factors\n{cfg.variant}, {k_omega}, "
              f"{args.criterion} criterion, mesh scale {args.mesh_scale:g}, V = {args.inlet_velocity:g} m/s")
     plot_grid(cells, out / "grid.png", title)
     best = best_cell(cells)

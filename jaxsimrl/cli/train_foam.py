@@ -29,6 +29,8 @@ from jaxsimrl.cli.errors import UsageError, positive_float, positive_int
 INTERRUPTED = 130
 #: Env steps per update, summed over envs: ~20-30 episodes of the paper's 4-8 steps (see foam_ppo_defaults).
 FOAM_BATCH = 128
+#: The built-in case as the paper's code ran it (a user's --case keeps its own settings instead).
+PAPER_CASE = {"simple_variant": "SIMPLEC", "relax_k_omega": 0.8, "inlet_velocity": [35.0, 65.0]}
 #: PPOConfig fields with a train-foam flag (the others come from --config).
 KNOBS: tuple[tuple[str, Any, str], ...] = (
     ("steps_per_update", positive_int, f"env steps per PPO update over all envs (default {FOAM_BATCH}, "
@@ -162,10 +164,13 @@ def _foam_config(args: argparse.Namespace, extra: dict[str, Any]) -> Any:
     from foam_bridge.config import FoamEnvConfig
     from jaxsimrl.envs.foam_config import foam_config_from_json, foam_config_to_json
 
-    values = {**foam_config_to_json(FoamEnvConfig(simple_variant="SIMPLEC", relax_k_omega=0.8)), **extra}
+    values = {**foam_config_to_json(FoamEnvConfig()), **extra}
     flags = {"mesh_scale": args.mesh_scale, "step_height": args.step_height,
              "max_iterations": args.max_iterations, "case_dir": args.case}
     values.update({name: value for name, value in flags.items() if value is not None})
+    if values.get("case_dir") is None:  # the built-in case: its paper defaults, written out in config.json
+        for name, value in PAPER_CASE.items():
+            values[name] = value if values.get(name) is None else values[name]
     if values.get("case_dir") is not None:
         values["case_dir"] = str(Path(values["case_dir"]).resolve())
     values["work_dir"] = None  # cases live in a temporary directory per process, never in the run dir

@@ -18,7 +18,7 @@ from typing import Any
 from foam_bridge.config import FoamEnvConfig
 
 #: Fields stored as JSON lists that FoamEnvConfig holds as tuples.
-_TUPLE_FIELDS = ("action_low", "action_high", "turbulence_fields")
+_TUPLE_FIELDS = ("action_low", "action_high", "turbulence_fields", "inlet_turbulence")
 
 
 def foam_config_to_json(cfg: FoamEnvConfig) -> dict[str, Any]:
@@ -39,7 +39,7 @@ def foam_config_from_json(data: Any) -> FoamEnvConfig:
         raise ValueError(f"unknown foam config key(s): {', '.join(unknown)}")
     values = dict(data)
     for name in _TUPLE_FIELDS:
-        if name in values:
+        if values.get(name) is not None:
             values[name] = _as_tuple(name, values[name])
     if isinstance(values.get("inlet_velocity"), list):
         values["inlet_velocity"] = _as_tuple("inlet_velocity", values["inlet_velocity"])
