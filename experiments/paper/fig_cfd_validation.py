@@ -87,11 +87,12 @@ def run_uninterrupted(cfg: FoamEnvConfig, root: Path, alpha_u: float, alpha_p: f
     ``write_every``: also write the fields every that many iterations (default: only at the end).
     """
     base, case = root / "base", root / "case"
-    foam_case.build_base_case(cfg, base, openfoam)
-    foam_case.write_episode_case(base, case, cfg, U_REF)
+    info = foam_case.build_base_case(cfg, base, openfoam)
+    foam_case.write_episode_case(base, case, cfg, U_REF, info)
     foam_case.make_uninterrupted(case, cfg, alpha_u, alpha_p)
     if write_every is not None:
-        with FoamFile(case / "system" / "controlDict") as control:
+        # the bridge's run control lives in the file its controlDict include reads last
+        with FoamFile(case / "system" / foam_case.CONTROL_INCLUDE) as control:
             control["writeInterval"] = write_every
     parser = new_parser(cfg)
     code, wall = run_to_end(case, openfoam, parser, timeout_s=SOLVER_TIMEOUT_S)
