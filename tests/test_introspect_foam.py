@@ -62,6 +62,23 @@ def test_acting_is_eval_foams_actor(policy):
     np.testing.assert_allclose(policy.act(STATES)[0], theirs, rtol=1e-6)
 
 
+def test_a_recurrent_foam_policy_carries_its_memory_as_eval_foams_actor_does(tmp_path):
+    from test_eval_foam import save_run
+
+    from jaxsimrl.evaluation.foam_policy import PolicyActor, load_foam_run
+
+    run = save_run(tmp_path / "lstm", network="lstm")
+    policy = jaxsimrl.load_policy(run)
+    assert policy.recurrent and policy.obs_names == ("state",)
+    actor = PolicyActor(load_foam_run(run), 1)
+    obs, state, carries = np.array([[1.3], [0.4], [2.0]], np.float32), None, [actor.initial_carry()]
+    for step, row in enumerate(obs):
+        mine, state = policy.act(row, state)
+        theirs, carries = actor.act(row[None], carries, [0], [step], deterministic=True)
+        np.testing.assert_allclose(mine, theirs[0], rtol=1e-5)
+    np.testing.assert_allclose(state[1], carries[0][1], rtol=1e-5)  # the same hidden state
+
+
 def _damaged(tmp_path, how):
     run = tmp_path / "run"
     shutil.copytree(RUN, run)
