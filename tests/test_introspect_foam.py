@@ -116,12 +116,24 @@ def test_observation_names_follow_the_residual_features():
 
 def test_rollout_refuses_bad_options_before_any_solver(policy):
     cases = [({"steps": 3}, "max_iterations"), ({"velocities": [50.0, 50.0]}, "distinct"),
-             ({"velocities": [-1.0]}, "> 0"), ({"pool": 0}, "pool"),
+             ({"velocities": [-1.0]}, "> 0"), ({"velocities": "fast"}, "> 0"), ({"velocities": []}, "> 0"),
+             ({"pool": 0}, "pool"),
              ({"env_params": dataclasses.replace(policy.env_params, residual_features=1)}, "size 5"),
              ({"env_params": {"mesh_scale": 0.4}}, "FoamEnvConfig")]
     for kwargs, needle in cases:
         with pytest.raises(ValueError, match=needle):
             policy.rollout(**kwargs)
+
+
+def test_a_lorenz_rollout_refuses_the_foam_options():
+    import jax
+    from test_introspect import LSTM, fresh_params
+
+    from jaxsimrl.introspect import LoadedPolicy
+
+    lorenz = LoadedPolicy.from_params(LSTM, fresh_params(LSTM, jax.random.PRNGKey(0)))
+    with pytest.raises(ValueError, match="unknown option.*velocities"):
+        lorenz.rollout(steps=5, velocities=[50.0])
 
 
 class LinearFoamPolicy:

@@ -39,7 +39,7 @@ def foam_rollout(policy: Any, env_params: FoamEnvConfig | None = None, steps: in
     from jaxsimrl.evaluation.foam_runner import Job, run_episodes
 
     cfg = _check(policy, env_params, steps, episodes, velocities, pool)
-    plan = [(float(v), sample) for v in cfg_velocities(velocities) for sample in range(episodes)]
+    plan = [(v, sample) for v in _velocities(velocities) for sample in range(episodes)]
     jobs = [Job(uid, CONTROLLER, "rollout", v, sample) for uid, (v, sample) in enumerate(plan)]
     controller = _controller(policy, min(pool, len(jobs)), deterministic, seed)
     results = run_episodes(cfg, jobs, {CONTROLLER: controller}, pool)
@@ -57,9 +57,7 @@ def _check(policy: Any, env_params: Any, steps: Any, episodes: Any, velocities: 
     for name, value in (("episodes", episodes), ("pool", pool)):
         if not isinstance(value, int) or isinstance(value, bool) or value < 1:
             raise ValueError(f"{name} must be a positive integer, got {value!r}")
-    speeds = cfg_velocities(velocities)
-    if not speeds or not all(isinstance(v, int | float) and np.isfinite(v) and v > 0 for v in speeds):
-        raise ValueError(f"velocities must be inlet velocities > 0 in m/s, got {velocities!r}")
+    speeds = _velocities(velocities)
     if len(set(speeds)) != len(speeds):
         raise ValueError(f"velocities must be distinct, got {speeds}")
     if cfg.observation_size != policy.obs_dim:
@@ -118,6 +116,12 @@ def _column(key: str, values: list[Any], policy: Any) -> np.ndarray:
     return np.asarray(values, kind)
 
 
-def cfg_velocities(velocities: Any) -> list[Any]:
-    """``velocities`` as a list (one number is one velocity)."""
-    return list(velocities) if isinstance(velocities, Sequence) else [velocities]
+def _velocities(velocities: Any) -> list[float]:
+    """``velocities`` (one number, a sequence or an array) as a list of floats > 0; ValueError if not."""
+    try:
+        speeds = np.atleast_1d(np.asarray(velocities, np.float64))
+    except (TypeError, ValueError):
+        speeds = np.array([np.nan])
+    if speeds.ndim != 1 or not speeds.size or not np.all(np.isfinite(speeds) & (speeds > 0)):
+        raise ValueError(f"velocities must be inlet velocities > 0 in m/s, got {velocities!r}")
+    return [float(v) for v in speeds]
