@@ -2,8 +2,9 @@
 
 The episodes run through eval-foam's machinery: :func:`jaxsimrl.evaluation.foam_runner.run_episodes`
 (a pool of simpleFoam workers, one episode per slot, each reset at its own inlet velocity) with a
-:class:`jaxsimrl.evaluation.foam_controllers.LearnedController` (the policy's mean action, or a sample
-keyed by (seed, episode, step)). So the actions are those eval-foam would take for the same seed.
+:class:`jaxsimrl.evaluation.foam_controllers.LearnedController`: the policy's mean action (as eval-foam's
+learned_deterministic), or a sample keyed by (seed, episode index, step), so a sampled episode does not
+depend on the pool size or on the other episodes.
 
 The record is a dict of numpy arrays with one entry per step of every episode, in episode order
 (``pandas.DataFrame`` takes the 1-D ones as they are; episodes have different lengths):
