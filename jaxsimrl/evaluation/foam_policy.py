@@ -39,17 +39,18 @@ class FoamRun:
     update: int
 
 
-class _ActionBox:
-    """The env-like object Policy needs: the training action box of (alpha_u, alpha_p)."""
+class FoamActionBox:
+    """The env-like object Policy needs: the action box of (alpha_u, alpha_p) of a FoamEnvConfig (the
+    config given to ``action_space``, else the one it was built with). No OpenFOAM needed."""
 
     def __init__(self, cfg: FoamEnvConfig) -> None:
-        self.box = action_spec(cfg)
+        self.cfg = cfg
 
-    def default_params(self) -> None:
-        return None
+    def default_params(self) -> FoamEnvConfig:
+        return self.cfg
 
-    def action_space(self, params: Any) -> Any:
-        return self.box
+    def action_space(self, params: FoamEnvConfig | None = None) -> Any:
+        return action_spec(self.cfg if params is None else params)
 
 
 def load_foam_run(path: str | Path) -> FoamRun:
@@ -92,7 +93,7 @@ class PolicyActor:
     """Acts for up to ``batch_size`` episodes per call (see the module docstring)."""
 
     def __init__(self, run: FoamRun, batch_size: int) -> None:
-        self.policy = Policy(run.config, _ActionBox(run.foam))
+        self.policy = Policy(run.config, FoamActionBox(run.foam))
         self.params = run.params
         self.batch_size = batch_size
         self.obs_size = run.foam.observation_size

@@ -12,6 +12,9 @@ through BatchedFoamEnv, for three reasons:
 - the episode's ``log.simpleFoam`` is read (linear-solver cost, foam_cost) after its last step and
   before its slot is reset, which deletes the episode's case directory.
 
+Every result keeps its episode's steps (``trace``: observation acted on, action, reward, iterations,
+residuals), which ``LoadedPolicy.rollout`` turns into its record.
+
 Failures are outcomes: a crashed, diverged or hung solver ends its episode with that outcome and
 cause, a dead worker with outcome "crashed" and its cause; nothing raises for them. A config or case
 the env rejects (every episode would fail alike) raises a one-line ValueError.
@@ -19,6 +22,7 @@ the env rejects (every episode would fail alike) raises a one-line ValueError.
 
 from __future__ import annotations
 
+import math
 import shutil
 import time
 from collections import deque
@@ -49,12 +53,25 @@ class Job:
 
 
 @dataclass(frozen=True)
+class StepRecord:
+    """One step of an episode: the observation acted on, the action, and what the step returned
+    (reward NaN when the worker could not answer; ``residuals`` are the latest initial residuals)."""
+
+    obs: np.ndarray
+    action: np.ndarray
+    reward: float
+    iterations: int
+    residuals: dict[str, float]
+    outcome: str
+
+
+@dataclass(frozen=True)
 class EpisodeResult:
     """How one episode ended and what it cost.
 
     ``wall_time_s``: seconds the episode took on its worker, less the time its paused solver waited
     for the rest of the batch (FoamCaseEnv's ``solver_idle_s``); ``cost``: linear-solver iterations and
-    the solver's CPU seconds from its log (None if the log could not be read).
+    the solver's CPU seconds from its log (None if the log could not be read); ``trace``: every step.
     """
 
     job: Job
@@ -64,6 +81,7 @@ class EpisodeResult:
     wall_time_s: float
     actions: list[list[float]]
     cost: SolverCost | None
+    trace: tuple[StepRecord, ...] = ()
 
 
 @dataclass
@@ -73,6 +91,7 @@ class _Running:
     steps: int = 0
     iterations: int = 0
     actions: list[list[float]] = field(default_factory=list)
+    trace: list[StepRecord] = field(default_factory=list)
     started: float = field(default_factory=time.monotonic)
 
 
@@ -147,12 +166,17 @@ class _Driver:
         requests = [Request(s, "step", {"action": actions[s]}) for s in self.active]
         for reply in self.backend.run(requests):
             running = self.active[reply.env_id]
+            action = actions[reply.env_id]
             running.steps += 1
-            running.actions.append([float(a) for a in actions[reply.env_id]])
+            running.actions.append([float(a) for a in action])
             if not reply.ok:
+                running.trace.append(StepRecord(running.obs, action, math.nan, running.iterations, {},
+                                                "crashed"))
                 self._finish(reply.env_id, "crashed", _cause(reply), None)
                 continue
-            obs, _, terminated, truncated, info = reply.value
+            obs, reward, terminated, truncated, info = reply.value
+            running.trace.append(StepRecord(running.obs, action, float(reward), int(info["iterations"]),
+                                            dict(info.get("residuals", {})), info["outcome"]))
             running.obs = np.asarray(obs, np.float32)
             running.iterations = int(info["iterations"])
             if terminated or truncated:
@@ -168,7 +192,8 @@ class _Driver:
             wall, actions = time.monotonic() - running.started, running.actions
             iterations = running.iterations
         cost = read_solver_cost(env_dir(self.root, slot) / EPISODE_DIR) if running.steps else None
-        result = EpisodeResult(running.job, outcome, cause, iterations, wall, actions, cost)
+        result = EpisodeResult(running.job, outcome, cause, iterations, wall, actions, cost,
+                               tuple(running.trace))
         self.controllers[running.job.controller].end(running.job.uid)
         self.results[running.job.uid] = result
         self.on_result(result)

@@ -4,19 +4,31 @@
 each return plain data (numpy arrays in a NamedTuple) and have a matplotlib ``plot_*`` companion:
 
 - :func:`policy_slice` / :func:`plot_policy_slice`: the action and the value on a 2-D slice of
-  observation space (the other components held fixed);
+  observation space (the other components held fixed); :func:`policy_profile` /
+  :func:`plot_policy_profile` on a 1-D one (a foam policy's factors against its state);
 - :func:`action_sensitivity` / :func:`plot_sensitivity`: d action / d observation along a
   trajectory (``jax.jacobian``), as a heat map over time;
 - :func:`hidden_pca` / :func:`plot_hidden_pca`: the LSTM hidden state of a trajectory on its leading
-  principal components, coloured by |velocity|, reward or any record key.
+  principal components, coloured by |velocity|, reward or any record key;
+- :func:`factor_history` / :func:`plot_factor_history` (train-foam runs): alpha_u and alpha_p against
+  the SIMPLE iteration and against the residual they answered, per inlet velocity.
 """
 
+from jaxsimrl.introspect.foam_factors import FactorHistory, factor_history, plot_factor_history
 from jaxsimrl.introspect.hidden import HiddenPCA, hidden_pca, plot_hidden_pca
 from jaxsimrl.introspect.loading import LoadedPolicy, load_policy
 from jaxsimrl.introspect.sensitivity import Sensitivity, action_sensitivity, plot_sensitivity
-from jaxsimrl.introspect.slices import PolicySlice, plot_policy_slice, policy_slice
+from jaxsimrl.introspect.slices import (
+    PolicyProfile,
+    PolicySlice,
+    plot_policy_profile,
+    plot_policy_slice,
+    policy_profile,
+    policy_slice,
+)
 from jaxsimrl.introspect.squashed import ActionDistribution
 
-__all__ = ["ActionDistribution", "HiddenPCA", "LoadedPolicy", "PolicySlice", "Sensitivity",
-           "action_sensitivity", "hidden_pca", "load_policy", "plot_hidden_pca", "plot_policy_slice",
-           "plot_sensitivity", "policy_slice"]
+__all__ = ["ActionDistribution", "FactorHistory", "HiddenPCA", "LoadedPolicy", "PolicyProfile", "PolicySlice",
+           "Sensitivity", "action_sensitivity", "factor_history", "hidden_pca", "load_policy",
+           "plot_factor_history", "plot_hidden_pca", "plot_policy_profile", "plot_policy_slice",
+           "plot_sensitivity", "policy_profile", "policy_slice"]

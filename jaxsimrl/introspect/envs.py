@@ -1,8 +1,15 @@
 """Which environment a run was trained on, rebuilt from its config.json (``record["env"]``).
 
 Each kind of run has a builder from the run's record to an :class:`EnvSpec`: the env object, the
-params it trained with and readable names for the observation and action components (used by the
-introspection plots). A new kind of run (e.g. train-foam's) adds one entry to ``BUILDERS``.
+params it trained with, readable names for the observation and action components (used by the
+introspection plots), the observation size the run's config implies (checked against the
+checkpoint) and the function that rolls a policy out in it. A new kind of run adds one entry to
+``BUILDERS``:
+
+- ``"lorenz"`` (train-lorenz): the pure-JAX Lorenz env, rolled out in one jitted scan;
+- ``"foam"`` (train-foam): the run's FoamEnvConfig (config.json's ``"foam"`` section) as the params and
+  its action box of (alpha_u, alpha_p); building it needs no OpenFOAM, rolling out runs real simpleFoam
+  episodes (:mod:`jaxsimrl.introspect.foam_rollout`).
 """
 
 from __future__ import annotations
@@ -13,6 +20,10 @@ from typing import Any
 
 LORENZ_OBS_NAMES = ("x", "y", "z", "dx/dt", "dy/dt", "dz/dt")
 LORENZ_ACTION_NAMES = ("d sigma", "d rho", "d beta")
+FOAM_ACTION_NAMES = ("alpha_u", "alpha_p")
+#: The foam observation's first component: (mean inlet |U|^2 + mean cells |U|^2) / state_scale, the
+#: paper's state divided by U_ref^2 = 44.2^2 by default (foam_bridge.env).
+FOAM_STATE_NAME = "state"
 
 
 @dataclass(frozen=True)
@@ -21,8 +32,11 @@ class EnvSpec:
 
     env: Any
     params: Any
-    obs_names: tuple[str, ...]
-    action_names: tuple[str, ...]
+    obs_names: tuple[str, ...] | None
+    action_names: tuple[str, ...] | None
+    obs_dim: int | None = None  # the observation size the run's config implies; None: not checked
+    rollout: Callable[..., Any] | None = None  # (policy, env_params, steps, episodes, seed, deterministic,
+    #                                            **options) -> record; None: the pure-JAX scan
 
 
 def lorenz_spec(record: dict[str, Any]) -> EnvSpec:
@@ -33,7 +47,32 @@ def lorenz_spec(record: dict[str, Any]) -> EnvSpec:
     return EnvSpec(env, env.default_params(), LORENZ_OBS_NAMES, LORENZ_ACTION_NAMES)
 
 
-BUILDERS: dict[str, Callable[[dict[str, Any]], EnvSpec]] = {"lorenz": lorenz_spec}
+def foam_spec(record: dict[str, Any]) -> EnvSpec:
+    """train-foam's env: the FoamEnvConfig of config.json's "foam" section (a one-line ValueError if it
+    is missing or bad) and its action box."""
+    from jaxsimrl.envs.foam_config import foam_config_from_json
+    from jaxsimrl.evaluation.foam_policy import FoamActionBox
+    from jaxsimrl.introspect.foam_rollout import foam_rollout
+
+    if "foam" not in record:
+        raise ValueError("config.json names env 'foam' but has no 'foam' section (the FoamEnvConfig)")
+    cfg = foam_config_from_json(record["foam"])
+    return EnvSpec(FoamActionBox(cfg), cfg, foam_obs_names(cfg), FOAM_ACTION_NAMES, cfg.observation_size,
+                   foam_rollout)
+
+
+def foam_obs_names(cfg: Any) -> tuple[str, ...]:
+    """"state", then per residual feature block (oldest first) "log10 r_<field>", with "(t-k)" for the
+    block k step boundaries before the latest (foam_bridge keeps the last ``residual_features``)."""
+    names = [FOAM_STATE_NAME]
+    blocks = cfg.residual_features
+    for block in range(blocks):
+        lag = blocks - 1 - block
+        names += [f"log10 r_{field}" + (f" (t-{lag})" if lag else "") for field in cfg.convergence]
+    return tuple(names)
+
+
+BUILDERS: dict[str, Callable[[dict[str, Any]], EnvSpec]] = {"lorenz": lorenz_spec, "foam": foam_spec}
 
 
 def env_spec(record: dict[str, Any]) -> EnvSpec:

@@ -53,6 +53,7 @@ class LoadedPolicy:
         self.obs_names = names_for(spec.obs_names, self.obs_dim, "obs")
         self.action_names = names_for(spec.action_names, self.action_dim, "action")
         self.recurrent = config.network == "lstm"
+        self._rollout = spec.rollout
         self._key = jax.random.PRNGKey(seed)  # the stream stochastic calls draw from when given no key
         self._rollout_cache: dict[tuple[int, int, bool], Any] = {}  # (steps, episodes, deterministic) -> jit
 
@@ -114,12 +115,21 @@ class LoadedPolicy:
         return distribution.to_box(mean[0], self.action_low, self.action_high)
 
     def rollout(self, env_params: Any = None, steps: int | None = None, episodes: int = 1, seed: int = 0,
-                deterministic: bool = True) -> dict[str, np.ndarray]:
-        """Run ``episodes`` episodes for ``steps`` steps (default: a whole episode); see
-        :func:`jaxsimrl.introspect.trajectory.rollout` for the record's keys."""
-        from jaxsimrl.introspect.trajectory import rollout
+                deterministic: bool = True, **options: Any) -> dict[str, np.ndarray]:
+        """Run ``episodes`` episodes for ``steps`` steps (default: a whole episode) in the run's env.
 
-        return rollout(self, env_params, steps, episodes, seed, deterministic)
+        A pure-JAX env (Lorenz): one jitted scan, see :func:`jaxsimrl.introspect.trajectory.rollout` for
+        the record's keys. A train-foam run: real simpleFoam episodes, ``episodes`` per inlet velocity of
+        ``velocities=`` on ``pool=`` workers, see :func:`jaxsimrl.introspect.foam_rollout.foam_rollout`.
+        """
+        if self._rollout is None:
+            from jaxsimrl.introspect.trajectory import rollout
+
+            if options:
+                raise ValueError(f"rollout: unknown option(s) {', '.join(sorted(options))} for this env "
+                                 "(velocities= and pool= are for train-foam runs)")
+            return rollout(self, env_params, steps, episodes, seed, deterministic)
+        return self._rollout(self, env_params, steps, episodes, seed, deterministic, **options)
 
     # ---- batching ----------------------------------------------------------------------------------
     def _batch(self, obs: Obs) -> tuple[jax.Array, bool]:
@@ -206,6 +216,9 @@ def _policy_params(tree: Any, config: PPOConfig, spec: EnvSpec, where: str) -> P
     stats = tree["normalizer"]
     normalizer = NormalizerState(count=stats["count"], mean=stats["mean"], m2=stats["m2"])
     obs_dim = int(normalizer.mean.shape[0])
+    if spec.obs_dim is not None and obs_dim != spec.obs_dim:
+        raise ValueError(f"{where} holds observations of size {obs_dim}, but its config.json's env gives "
+                         f"{spec.obs_dim}")
     policy = Policy(config, spec.env, spec.params)
     carry = policy.initial_carry(1)
     expected = jax.eval_shape(policy.network.init, jax.random.PRNGKey(0), carry, jnp.zeros((1, 1, obs_dim)),

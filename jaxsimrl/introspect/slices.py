@@ -1,9 +1,11 @@
-"""The action and the value on a 2-D slice of observation space.
+"""The action and the value on a 2-D or 1-D slice of observation space.
 
 The user picks two observation components (by name, e.g. "x" and "z", or index) and their ranges;
 every other component is held at ``base`` (default zeros), e.g. d rho over the (x, z) plane at fixed y
-and velocities. All grid points go through the policy as one batch, each as an episode start unless an
-(unbatched) recurrent ``state`` is given, which every point then shares.
+and velocities. :func:`policy_profile` is the 1-D slice along one component (e.g. a foam policy's
+(alpha_u, alpha_p) against its one-number state). All grid points go through the policy as one batch,
+each as an episode start unless an (unbatched) recurrent ``state`` is given, which every point then
+shares.
 """
 
 from __future__ import annotations
@@ -33,20 +35,59 @@ def policy_slice(policy: Any, x: str | int, y: str | int, x_range: tuple[float, 
         raise ValueError(f"x and y must be two different observation components, got {x!r} twice")
     if resolution < 2:
         raise ValueError(f"resolution must be at least 2, got {resolution}")
-    base = np.zeros(policy.obs_dim, np.float32) if base is None else np.asarray(base, np.float32)
-    if base.shape != (policy.obs_dim,):
-        raise ValueError(f"base must have shape ({policy.obs_dim},), got {base.shape}")
     xs, ys = np.linspace(*x_range, resolution), np.linspace(*y_range, resolution)
-    grid = np.tile(base, (resolution * resolution, 1))
+    grid = np.tile(_base(policy, base), (resolution * resolution, 1))
     grid_y, grid_x = np.meshgrid(ys, xs, indexing="ij")
     grid[:, ix], grid[:, iy] = grid_x.ravel(), grid_y.ravel()
-    batch_state = None if state is None else _broadcast(state, len(grid))
-    actions, _ = policy.act(grid, batch_state)
-    values = policy.value(grid, batch_state)
+    actions, values = _evaluate(policy, grid, state)
     shape = (resolution, resolution)
-    return PolicySlice(policy.obs_names[ix], policy.obs_names[iy], xs, ys,
-                       np.asarray(actions).reshape(*shape, -1), np.asarray(values).reshape(shape),
-                       tuple(policy.action_names))
+    return PolicySlice(policy.obs_names[ix], policy.obs_names[iy], xs, ys, actions.reshape(*shape, -1),
+                       values.reshape(shape), tuple(policy.action_names))
+
+
+class PolicyProfile(NamedTuple):
+    x_name: str
+    x: np.ndarray  # (n,) values of the component
+    actions: np.ndarray  # (n, A)
+    values: np.ndarray  # (n,) critic value (reward units)
+    action_names: tuple[str, ...]
+
+
+def policy_profile(policy: Any, x: str | int, x_range: tuple[float, float], base: Any = None,
+                   resolution: int = 101, state: Any = None) -> PolicyProfile:
+    """Deterministic actions and values of ``policy`` at ``resolution`` points of component ``x`` over
+    ``x_range``, the other components at ``base`` (default zeros)."""
+    ix = _component(policy, x)
+    if resolution < 2:
+        raise ValueError(f"resolution must be at least 2, got {resolution}")
+    xs = np.linspace(*x_range, resolution)
+    grid = np.tile(_base(policy, base), (resolution, 1))
+    grid[:, ix] = xs
+    actions, values = _evaluate(policy, grid, state)
+    return PolicyProfile(policy.obs_names[ix], xs, actions.reshape(resolution, -1),
+                         values.reshape(resolution), tuple(policy.action_names))
+
+
+def plot_policy_profile(data: PolicyProfile, value: bool = True, points: Any = None) -> Figure:
+    """One panel per action component (and the value) against the component; ``points`` = (x (N,),
+    actions (N, A)) adds the observations and actions of real steps (e.g. a rollout's) as dots."""
+    panels = len(data.action_names) + int(value)
+    fig = Figure(figsize=(4.0 * panels, 3.4), layout="constrained")
+    axes = fig.subplots(1, panels, squeeze=False)[0]
+    for i, (ax, name) in enumerate(zip(axes, data.action_names, strict=False)):
+        ax.plot(data.x, data.actions[:, i], color="C0", label="policy (mean action)")
+        if points is not None:
+            ax.scatter(np.asarray(points[0]), np.asarray(points[1])[:, i], s=12, color="C3", zorder=3,
+                       label="steps taken")
+            ax.legend(fontsize=8)
+        ax.set_ylabel(name)
+    if value:
+        axes[-1].plot(data.x, data.values, color="C2")
+        axes[-1].set_ylabel("value")
+    for ax in axes:
+        ax.set_xlabel(data.x_name)
+        ax.grid(alpha=0.3)
+    return fig
 
 
 def plot_policy_slice(data: PolicySlice, value: bool = True) -> Figure:
@@ -63,6 +104,20 @@ def plot_policy_slice(data: PolicySlice, value: bool = True) -> Figure:
         ax.set_xlabel(data.x_name)
         ax.set_ylabel(data.y_name)
     return fig
+
+
+def _base(policy: Any, base: Any) -> np.ndarray:
+    base = np.zeros(policy.obs_dim, np.float32) if base is None else np.asarray(base, np.float32)
+    if base.shape != (policy.obs_dim,):
+        raise ValueError(f"base must have shape ({policy.obs_dim},), got {base.shape}")
+    return base
+
+
+def _evaluate(policy: Any, grid: np.ndarray, state: Any) -> tuple[np.ndarray, np.ndarray]:
+    """Actions and values of every row of ``grid`` (one batch), from ``state`` shared by all rows."""
+    batch_state = None if state is None else _broadcast(state, len(grid))
+    actions, _ = policy.act(grid, batch_state)
+    return np.asarray(actions), np.asarray(policy.value(grid, batch_state))
 
 
 def _component(policy: Any, which: str | int) -> int:
