@@ -123,9 +123,11 @@ def _drive(backend: Any, pairs: list, slots: int, results: list, on_cell: Callab
         on_cell(cell)
 
     while queue or active:
-        starting = [s for s in range(slots) if s not in active and queue]
-        for slot_id in starting:
-            active[slot_id] = _Slot(*queue.popleft())
+        starting = []
+        for slot_id in range(slots):  # as many as there are cells left: two free slots, one cell
+            if slot_id not in active and queue:
+                active[slot_id] = _Slot(*queue.popleft())
+                starting.append(slot_id)
         resets = [Request(s, "reset", {"seed": GRID_SEED, "options": None}) for s in starting]
         for reply in backend.run(resets) if resets else []:
             if not reply.ok:

@@ -206,3 +206,35 @@ def test_grid_end_to_end_matches_the_env(capsys, tmp_path):
     finally:
         env.close()
     assert (info["iterations"], info["outcome"]) == (cell.iterations, cell.outcome)
+
+
+class _ScriptedPool:
+    """A stand-in backend: every episode converges on its first step after 100 iterations."""
+
+    def __init__(self) -> None:
+        self.resets: list[int] = []
+
+    def run(self, requests):
+        from foam_bridge.backends import Reply
+
+        replies = []
+        for request in requests:
+            if request.method == "reset":
+                self.resets.append(request.env_id)
+                replies.append(Reply(request.env_id, True, (np.zeros(1), {})))
+            else:
+                info = {"iterations": 100, "outcome": "converged", "cause": "",
+                        "episode": {"wall_time_s": 1.0}}
+                replies.append(Reply(request.env_id, True, (np.zeros(1), -100.0, True, False, info)))
+        return replies
+
+
+def test_two_slots_freed_in_one_step_with_one_cell_left_start_only_that_cell():
+    from foam_bridge.grid import _drive
+
+    pool, pairs = _ScriptedPool(), [(0.9, 0.9), (0.8, 0.8), (0.7, 0.7)]
+    results: list = [None] * len(pairs)
+    _drive(pool, pairs, 2, results, lambda cell: None)  # raised IndexError when both slots ended at once
+    assert [(c.alpha_u, c.iterations, c.outcome) for c in results] == [
+        (0.9, 100, "converged"), (0.8, 100, "converged"), (0.7, 100, "converged")]
+    assert pool.resets == [0, 1, 0]
