@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Callable
 from typing import NoReturn
 
 
@@ -39,6 +40,22 @@ def positive_float(text: str) -> float:
     if not 0 < value < float("inf"):
         raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
     return value
+
+
+def seed_type(bits: int | None = None) -> Callable[[str], int]:
+    """argparse type: a non-negative integer seed, below 2**bits when ``bits`` is given (the range the
+    seeded generator accepts)."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}") from None
+        if value < 0 or (bits is not None and value >= 2**bits):
+            bound = f"an integer in [0, 2**{bits})" if bits is not None else "a non-negative integer"
+            raise argparse.ArgumentTypeError(f"expected {bound}, got {text!r}")
+        return value
+
+    return parse
 
 
 def fail(message: str) -> NoReturn:

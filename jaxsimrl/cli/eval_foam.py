@@ -14,17 +14,7 @@ import os
 from pathlib import Path
 from typing import Any
 
-from jaxsimrl.cli.errors import fail, positive_float, positive_int
-
-
-def _seed(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}")
-    return value
+from jaxsimrl.cli.errors import fail, positive_float, positive_int, seed_type
 
 
 def register(subparsers: Any) -> None:
@@ -57,7 +47,7 @@ def register(subparsers: Any) -> None:
                         metavar="A", help="alpha_u of that small grid (default 0.8 0.9 0.95)")
     parser.add_argument("--grid-alpha-p", type=relaxation_factor, nargs="+", default=[0.8, 0.9, 0.95],
                         metavar="B", help="alpha_p of that small grid (default 0.8 0.9 0.95)")
-    parser.add_argument("--seed", type=_seed, default=0,
+    parser.add_argument("--seed", type=seed_type(), default=0,
                         help="seeds the sampled and random actions (default 0): the same command gives the "
                         "same numbers")
     parser.add_argument("--out", metavar="DIR", type=Path, help="output directory (default RUN_DIR/eval)")

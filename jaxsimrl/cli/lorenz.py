@@ -20,7 +20,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from jaxsimrl.cli.errors import UsageError, positive_float, positive_int
+from jaxsimrl.cli.errors import UsageError, positive_float, positive_int, seed_type
 
 # PPOConfig fields with a command-line flag: (flag, type, help). Their defaults are PPOConfig's.
 KNOBS: tuple[tuple[str, Any, str], ...] = (
@@ -61,7 +61,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                            help=text)
     train.add_argument("--network", choices=NETWORKS, help="lstm (the paper's: 2x64 tanh then LSTM 256) "
                        "or mlp (2x64 tanh only) (default: lstm)")
-    train.add_argument("--seed", type=_seed, help="PRNG seed; the same seed and config give the same "
+    train.add_argument("--seed", type=seed_type(32), help="PRNG seed; the same seed and config give the "
+                       "same "
                        "numbers on the same machine (default: 0)")
     train.add_argument("--out", metavar="DIR", help="run directory to create; must not hold anything yet "
                        "(default: runs/lorenz-<UTC timestamp>)")
@@ -85,19 +86,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                           help="4000-step episodes from random initial states (default: 32)")
     evaluate.add_argument("--stochastic", action="store_true",
                           help="sample actions from the policy instead of taking its mean action")
-    evaluate.add_argument("--seed", type=_seed, default=0, help="PRNG seed of the initial states and of "
+    evaluate.add_argument("--seed", type=seed_type(32), default=0, help="PRNG seed of the initial states "
+                          "and of "
                           "sampled actions (default: 0)")
     evaluate.set_defaults(func=run_eval)
 
-
-def _seed(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}") from None
-    if not 0 <= value < 2**32:
-        raise argparse.ArgumentTypeError(f"expected an integer in [0, 2**32), got {text!r}")
-    return value
 
 
 # ---- train-lorenz ------------------------------------------------------------------------------------

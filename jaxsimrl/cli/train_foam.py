@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from jaxsimrl.cli.errors import UsageError, positive_float, positive_int
+from jaxsimrl.cli.errors import UsageError, positive_float, positive_int, seed_type
 
 INTERRUPTED = 130
 #: Env steps per update, summed over envs: ~20-30 episodes of the paper's 4-8 steps (see foam_ppo_defaults).
@@ -93,7 +93,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         p.add_argument("--" + name.replace("_", "-"), dest=name, type=kind, metavar="X", help=text)
     p.add_argument("--config", metavar="FILE.json", help='a JSON object {"ppo": {PPOConfig fields}, "foam": '
                    '{FoamEnvConfig fields}} applied after the defaults and before the flags')
-    p.add_argument("--seed", type=_seed, help="PRNG seed (default 0): network, actions and episode seeds")
+    p.add_argument("--seed", type=seed_type(31), help="PRNG seed (default 0): network, actions and episode "
+                   "seeds")
     p.add_argument("--out", metavar="DIR", help="run directory to create (default runs/foam-<UTC timestamp>)")
     p.add_argument("--resume", metavar="RUN_DIR", help="continue RUN_DIR from its last checkpoint; only "
                    "--episodes (raised), --pool, --backend and --ray-address may be given")
@@ -102,15 +103,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--print-config", action="store_true", help="print the resolved config and exit")
     p.set_defaults(func=run_train_foam)
 
-
-def _seed(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}") from None
-    if not 0 <= value < 2**31:
-        raise argparse.ArgumentTypeError(f"expected an integer in [0, 2**31), got {text!r}")
-    return value
 
 
 # ---- the plan: everything resolved before anything heavy starts ---------------------------------------
@@ -342,8 +334,7 @@ def foam_summary(summary: dict[str, Any], episodes: Any, plan: FoamPlan) -> dict
     count = len(episodes.rows)
     return {"episodes": count, "episodes_target": plan.episodes, "complete": count >= plan.episodes,
             "episodes_per_hour": count / wall * 3600 if wall > 0 else math.nan,
-            "final_mean_iterations": episodes.moving_iterations(), "failures": {
-                k: v for k, v in episodes.outcomes().items() if k in ("crashed", "diverged", "hung")},
+            "final_mean_iterations": episodes.moving_iterations(), "failures": episodes.failures(),
             "outcomes": episodes.outcomes(), "pool": plan.pool,
             "pool_utilisation": episodes.busy_s() / (plan.pool * wall) if wall > 0 else math.nan}
 

@@ -47,6 +47,11 @@ def env_info(infos: dict[str, Any], i: int) -> dict[str, Any]:
             for key, value in infos.items() if not key.startswith("_")}
 
 
+def _float32_box(spec: Any) -> BoxSpec:
+    """The host batch's box (numpy, any dtype) as float32 JAX arrays."""
+    return BoxSpec(jnp.asarray(spec.low, jnp.float32), jnp.asarray(spec.high, jnp.float32), tuple(spec.shape))
+
+
 def seed_of(keys: np.ndarray) -> int:
     """One host seed from a batch of raw PRNG keys (deterministic, any key width)."""
     words = np.asarray(keys).astype(np.uint64).ravel().tolist()
@@ -69,14 +74,10 @@ class HostVecEnv:
 
     # ---- VecEnv ----------------------------------------------------------------------------------
     def action_space(self) -> BoxSpec:
-        spec = self.batch.action_spec
-        return BoxSpec(jnp.asarray(spec.low, jnp.float32), jnp.asarray(spec.high, jnp.float32),
-                       tuple(spec.shape))
+        return _float32_box(self.batch.action_spec)
 
     def observation_space(self) -> BoxSpec:
-        spec = self.batch.observation_spec
-        return BoxSpec(jnp.asarray(spec.low, jnp.float32), jnp.asarray(spec.high, jnp.float32),
-                       tuple(spec.shape))
+        return _float32_box(self.batch.observation_spec)
 
     def sample_observations(self, key: jax.Array, count: int) -> None:
         """None: every sample would cost a case build; the normaliser starts empty."""

@@ -96,6 +96,13 @@ class EpisodeLog:
         """Episodes per outcome."""
         return dict(Counter(r["outcome"] for r in self.rows))
 
+    def failures(self) -> dict[str, int]:
+        """Episodes per failure outcome (foam_bridge's crashed, diverged, hung), in that order."""
+        from foam_bridge.env import FAILURES
+
+        counts = self.outcomes()
+        return {name: counts[name] for name in FAILURES if counts.get(name)}
+
     def busy_s(self) -> float:
         """Solver-busy seconds of the finished episodes (episode wall time less waiting on the bridge)."""
         return sum(max(r["wall_time_s"] - r["solver_idle_s"], 0.0) for r in self.rows

@@ -105,8 +105,7 @@ class FoamProgress:
         """The numbers after the episode count, as one short text."""
         wall = self.metrics.wall_time_s
         count = len(self.episodes.rows)
-        outcomes = self.episodes.outcomes()
-        failed = ", ".join(f"{k} {outcomes[k]}" for k in ("crashed", "diverged", "hung") if outcomes.get(k))
+        failed = ", ".join(f"{k} {v}" for k, v in self.episodes.failures().items())
         moving = self.episodes.moving_iterations()
         moving_text = f"{moving:.0f}" if math.isfinite(moving) else "-"
         parts = [f"iterations (last 100) {moving_text}", f"failures: {failed or 'none'}"]
