@@ -35,7 +35,12 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 
 from foam_bridge.backends import BAD_INPUT_ERRORS, WORKER_DIED, Reply, Request, make_backend, validate_pool
-from foam_bridge.config import FoamEnvConfig, failure_reward, work_root  # failure_reward: re-exported
+from foam_bridge.config import (  # failure_reward: re-exported
+    FoamEnvConfig,
+    cost_per_iteration,
+    failure_reward,
+    work_root,
+)
 from foam_bridge.env import action_spec, observation_spec
 
 SEED_BOUND = 2**31 - 1
@@ -203,7 +208,8 @@ class BatchedFoamEnv:
     def _failed_step(self, tally: _Tally, action: np.ndarray, cause: str) -> tuple:
         """The step result of an episode the env itself could not report: crashed, with the penalty."""
         tally.actions.append([float(a) for a in action])
-        reward = failure_reward(self.cfg, tally.iterations)
+        rate = cost_per_iteration(self.cfg, -tally.episode_return, tally.iterations)
+        reward = failure_reward(self.cfg, tally.iterations, rate)
         tally.episode_return += reward
         return tally.obs, reward, True, False, self._failure_info(tally, cause)
 

@@ -3,7 +3,7 @@
 The environment (Pawar & Maulik, "Solver convergence acceleration"): a steady simpleFoam run of a 2D
 turbulent backward-facing step (k-omega SST). Every ``interval`` SIMPLE iterations the agent sets the
 under-relaxation factors (alpha_u, alpha_p); the reward is -(K_t - K_{t-1}), K = SIMPLE iterations run,
-so an episode's return is minus its total iterations.
+so an episode's return is minus its total iterations (or minus another cost of the run: ``reward``).
 
 The config is a frozen dataclass: it is hashable by identity of its values, picklable (it travels to
 worker processes) and validated by :meth:`FoamEnvConfig.validate`, which raises a one-line
@@ -43,6 +43,9 @@ BUILTIN_INLET_VELOCITY = (35.0, 65.0)
 PAPER_INLET_TURBULENCE = (6.1e-4, 0.009)
 #: Smallest mesh_scale of the built-in case measured usable (see FoamEnvConfig.mesh_scale).
 MESH_SCALE_USABLE_MIN = 0.4
+#: The costs a reward can count (FoamEnvConfig.reward): SIMPLE iterations (the paper's), the linear
+#: solvers' inner iterations (every "No Iterations" of the log) or the solver's own CPU seconds.
+REWARDS = ("iterations", "linear-iterations", "solver-time")
 #: Every observation entry is clipped into [-OBSERVATION_BOUND, OBSERVATION_BOUND] (NaN -> the bound):
 #: the last line of defence for a learner's normaliser; divergence detection ends episodes long before.
 OBSERVATION_BOUND = 1e6
@@ -97,9 +100,17 @@ class FoamEnvConfig:
             ``convergence`` field at each of the last N step boundaries (0 = the paper's 1-D state).
         state_scale: the observed state is (mean_inlet |U|^2 + mean_cells |U|^2) / state_scale
             (default U_REF**2 = 44.2**2, so the state is O(1)).
+        reward: the cost whose increase is the negative reward of a step, one of REWARDS:
+            "iterations" (default, the paper's: SIMPLE iterations K), "linear-iterations" (the inner
+            iterations of every linear solve, all fields: a SIMPLE iteration with a high alpha_p can
+            cost more pressure-solver iterations than one with a low alpha_p) or "solver-time" (the
+            solver's ExecutionTime, CPU seconds: it does not count the pauses between steps nor a
+            busy pool's waiting, but it varies from run to run, so a run with it is not bit-
+            reproducible). Every episode record holds all three costs whatever the reward.
         failure_penalty: reward of the step on which the solver failed (crashed, diverged, hung);
-            ``None`` -> as if it had run to max_iterations: -(max_iterations - K_{t-1}), so that the
-            episode's return is -max_iterations.
+            ``None`` -> as if it had run to max_iterations: -(max_iterations - K_{t-1}) SIMPLE
+            iterations, each at the episode's mean cost per iteration so far for the other rewards,
+            so that the episode's return is about minus the cost of a run to the cap.
         divergence_threshold: an initial residual above this (or NaN/Inf) ends the episode as
             ``diverged``.
         state_divergence_ratio: a state term (mean |U|^2 over the cells or over the inlet) above this
@@ -133,6 +144,7 @@ class FoamEnvConfig:
     relax_k_omega: float | str | None = None
     convergence: Mapping[str, float] = field(default_factory=lambda: dict(TRAIN_CONVERGENCE))
     residual_features: int = 0
+    reward: str = "iterations"
     state_scale: float = U_REF**2
     failure_penalty: float | None = None
     divergence_threshold: float = 1e3
@@ -175,6 +187,7 @@ class FoamEnvConfig:
                dict(self.convergence), "a non-empty {field: threshold > 0}")
         _check(_is_int(self.residual_features) and self.residual_features >= 0, "residual_features",
                self.residual_features, "an integer >= 0")
+        _check(self.reward in REWARDS, "reward", self.reward, f"one of {REWARDS}")
         _check(self.state_scale > 0, "state_scale", self.state_scale)
         _check(self.step_timeout_s > 0, "step_timeout_s", self.step_timeout_s)
         _check(self.divergence_threshold > 0, "divergence_threshold", self.divergence_threshold)
@@ -237,16 +250,25 @@ class FoamEnvConfig:
         return 1 + self.residual_features * len(self.convergence)
 
 
-def failure_reward(cfg: FoamEnvConfig, iterations_before: int) -> float:
+def failure_reward(cfg: FoamEnvConfig, iterations_before: int, cost_per_iteration: float = 1.0) -> float:
     """Reward of the step on which the solver failed (crashed, diverged, hung, dead worker).
 
     ``cfg.failure_penalty`` if set; otherwise as if the episode had run to the cap:
-    ``-(max_iterations - iterations_before)``, with ``iterations_before`` = K at the start of that step,
-    so that the episode's return is ``-max_iterations``.
+    ``-(max_iterations - iterations_before) * cost_per_iteration``, with ``iterations_before`` = K at the
+    start of that step, so that with the "iterations" reward (cost 1 per iteration) the episode's
+    return is ``-max_iterations``.
     """
     if cfg.failure_penalty is not None:
         return float(cfg.failure_penalty)
-    return -float(max(cfg.max_iterations - iterations_before, 0))
+    return -float(max(cfg.max_iterations - iterations_before, 0)) * float(cost_per_iteration)
+
+
+def cost_per_iteration(cfg: FoamEnvConfig, cost: float, iterations: int) -> float:
+    """An episode's mean cost per SIMPLE iteration so far in the reward's unit, for :func:`failure_reward`
+    (1 for the "iterations" reward, and before any iteration ran)."""
+    if cfg.reward == "iterations" or iterations <= 0 or cost <= 0:
+        return 1.0
+    return cost / iterations
 
 
 def work_root(cfg: FoamEnvConfig, work_dir: Path | str | None = None,
@@ -254,14 +276,25 @@ def work_root(cfg: FoamEnvConfig, work_dir: Path | str | None = None,
     """The parent of the case directories and whether it is a fresh temporary directory.
 
     ``work_dir``, else ``cfg.work_dir`` (created if missing), else a new temporary directory named
-    ``prefix...``, which the caller removes when it closes (unless ``cfg.keep_cases``).
+    ``prefix...``, which the caller removes when it closes (unless ``cfg.keep_cases``). A path with
+    whitespace is a one-line ValueError: OpenFOAM (v1912) cannot run a case there (its foamDictionary and
+    solvers fail with "Could not find mandatory etc entry 'controlDict'"). A user's ``case_dir`` may have
+    whitespace: it is only copied.
     """
     chosen = work_dir if work_dir is not None else cfg.work_dir
     if chosen is None:
+        _check_no_whitespace(Path(tempfile.gettempdir()), "the temporary directory (TMPDIR)")
         return Path(tempfile.mkdtemp(prefix=prefix)).resolve(), True
     root = _absolute(chosen)
+    _check_no_whitespace(root, "work_dir")
     root.mkdir(parents=True, exist_ok=True)
     return root, False
+
+
+def _check_no_whitespace(path: Path, what: str) -> None:
+    if any(char.isspace() for char in str(path)):
+        raise ValueError(f"{what} {str(path)!r} contains whitespace, where OpenFOAM cannot run a case; "
+                         f"choose a directory without spaces")
 
 
 def _absolute(path: Path | str | os.PathLike[str] | None) -> Path | None:

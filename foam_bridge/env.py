@@ -7,7 +7,9 @@ MDP (Pawar & Maulik, "Solver convergence acceleration"):
 - observation: ``(mean_inlet |U|^2 + mean_cells |U|^2) / state_scale`` (arithmetic means over the inlet
   faces and over all cells, as the paper's state; ``state_scale`` = 44.2**2 by default), then
   optionally the log10 initial residuals of the last ``residual_features`` step boundaries.
-- reward: -(K_t - K_{t-1}), K = SIMPLE iterations actually run; the return is minus the total.
+- reward: -(K_t - K_{t-1}), K = SIMPLE iterations actually run; the return is minus the total. With
+  ``cfg.reward`` "linear-iterations" or "solver-time", K is that cost instead (the linear solvers'
+  inner iterations, the solver's CPU seconds, as the log counts them up to iteration K).
 - episode end: the solver's own ``SIMPLE.residualControl`` met (``converged``, terminated), the
   ``max_iterations`` cap (``truncated``), or a failure (terminated, reward :func:`failure_reward`):
   ``crashed`` (solver died, broken case), ``diverged`` (NaN/Inf or an initial residual above
@@ -52,7 +54,7 @@ from typing import Any, BinaryIO
 import numpy as np
 
 from foam_bridge import case as foam_case
-from foam_bridge.config import OBSERVATION_BOUND, FoamEnvConfig, failure_reward, work_root
+from foam_bridge.config import OBSERVATION_BOUND, FoamEnvConfig, cost_per_iteration, failure_reward, work_root
 from foam_bridge.logparse import LogParser, field_residual
 from foam_bridge.openfoam import find_openfoam
 from foam_bridge.solver import DIVERGED, EXITED, HUNG, MISSED, PAUSED, FoamSolver
@@ -146,6 +148,7 @@ class FoamCaseEnv:
         self._parser = LogParser(foam_case.CELLS_FUNCTION, foam_case.INLET_FUNCTION,
                                  self.cfg.divergence_threshold, state_limit)
         self._iterations = self._target = 0
+        self._cost = 0.0
         self._features: deque[np.ndarray] = deque(
             [np.zeros(len(self.cfg.convergence))] * self.cfg.residual_features,
             maxlen=self.cfg.residual_features or None)
@@ -167,10 +170,12 @@ class FoamCaseEnv:
         code = self._stop_solver() if event != PAUSED else None
         outcome, cause, iterations = self._classify(event, code)
         previous, self._iterations = self._iterations, max(iterations, self._iterations)
+        spent, self._cost = self._cost, self._episode_cost()
         if outcome in FAILURES:
-            reward = failure_reward(self.cfg, previous)
+            rate = cost_per_iteration(self.cfg, self._cost, self._parser.completed)
+            reward = failure_reward(self.cfg, previous, rate)
         else:
-            reward = float(-(self._iterations - previous))
+            reward = -(self._cost - spent)
         residuals = self._residuals()
         self._update_observation(outcome, residuals)
         self._episode["return"] += reward
@@ -281,6 +286,14 @@ class FoamCaseEnv:
         cause = f"simpleFoam exited with code {code} at iteration {parser.iteration}: {detail}"
         return "crashed", cause, parser.iteration
 
+    def _episode_cost(self) -> float:
+        """The episode's cost so far in the reward's unit (cfg.reward; see FoamEnvConfig.reward)."""
+        if self.cfg.reward == "linear-iterations":
+            return float(self._parser.linear_iterations)
+        if self.cfg.reward == "solver-time":
+            return float(self._parser.execution_time)
+        return float(self._iterations)
+
     def _residuals(self) -> dict[str, float]:
         found = {name: field_residual(self._parser.residuals, name) for name in self.cfg.convergence}
         return {name: float(value) for name, value in found.items() if value is not None}
@@ -310,6 +323,8 @@ class FoamCaseEnv:
     def _episode_record(self, outcome: str, cause: str, residuals: dict[str, float]) -> dict[str, Any]:
         record = {key: value for key, value in self._episode.items() if key != "started"}
         record.update(outcome=outcome, cause=cause, iterations=self._iterations, residuals=residuals,
+                      linear_iterations=self._parser.linear_iterations,
+                      solver_time_s=self._parser.execution_time,
                       wall_time_s=time.monotonic() - self._episode["started"])
         return record
 

@@ -8,8 +8,8 @@ What it recognises (OpenFOAM v1912 wording):
 - ``Time = 123``: iteration 123 starts.
 - ``<solver>:  Solving for Ux, Initial residual = 0.01, Final residual = ..., No Iterations 2``: the
   first solve of a field in an iteration gives its initial residual (as simpleFoam's residualControl
-  judges it).
-- ``ExecutionTime = ...``: the iteration is complete.
+  judges it); every solve's ``No Iterations`` adds to ``linear_iterations``.
+- ``ExecutionTime = 1.14 s``: the iteration is complete; the solver's CPU seconds so far.
 - ``volFieldValue <cells> write:`` / ``surfaceFieldValue <inlet> write:`` followed by
   ``    average(...) of <field> = 1953.64``: the two terms of the paper's state.
 - ``SIMPLE solution converged in 418 iterations``: simpleFoam's own residualControl was met.
@@ -29,8 +29,9 @@ import re
 from dataclasses import dataclass, field
 
 _TIME = re.compile(r"^Time = (\S+)\s*$")
-_SOLVE = re.compile(r"Solving for (\w+), Initial residual = (\S+), Final residual = (\S+),")
-_EXECUTION = re.compile(r"^ExecutionTime = ")
+_SOLVE = re.compile(r"Solving for (\w+), Initial residual = (\S+), Final residual = (\S+),"
+                    r"(?: No Iterations (\d+))?")
+_EXECUTION = re.compile(r"^ExecutionTime = (\S+)")
 _FUNCTION_HEADER = re.compile(r"^(?:volFieldValue|surfaceFieldValue) (\S+) write:")
 _FUNCTION_VALUE = re.compile(r"^\s+\w+\(.*\) of \S+ = (\S+)\s*$")
 _CONVERGED = re.compile(r"solution converged in (\S+) iterations")
@@ -70,6 +71,8 @@ class LogParser:
     ``residuals`` (raw initial residuals of the last finished iteration, e.g. {"Ux": .., "p": ..}),
     ``history`` (one residual dict per finished iteration, in order), ``cells_state`` /
     ``inlet_state`` / ``state_iteration`` (latest state terms and the iteration they belong to),
+    ``linear_iterations`` (inner iterations of every linear solve so far, all fields), ``execution_time``
+    (the solver's CPU seconds at the last finished iteration),
     ``converged_at``, ``fvsolution_rereads``, ``error`` (first crash line), ``diverged`` (cause text)
     and ``failed_at`` (the iteration in which divergence was detected; the parser ignores all output
     after that line).
@@ -83,6 +86,8 @@ class LogParser:
     completed: int = 0
     residuals: dict[str, float] = field(default_factory=dict)
     history: list[dict[str, float]] = field(default_factory=list)
+    linear_iterations: int = 0
+    execution_time: float = 0.0
     cells_state: float | None = None
     inlet_state: float | None = None
     state_iteration: int = 0
@@ -120,8 +125,11 @@ class LogParser:
             self.iteration = int(round(_to_float(match.group(1))))
             self._current = {}
         elif match := _SOLVE.search(line):
+            self.linear_iterations += int(match.group(4) or 0)
             self._residual(match.group(1), _to_float(match.group(2)))
-        elif _EXECUTION.match(line):
+        elif match := _EXECUTION.match(line):
+            seconds = _to_float(match.group(1))
+            self.execution_time = seconds if math.isfinite(seconds) else self.execution_time
             self.completed = self.iteration
             self.residuals = self._current
             self.history.append(self._current)

@@ -142,7 +142,7 @@ def test_divergence_is_deterministic_with_the_penalty_and_a_bounded_observation(
                 if terminated or truncated:
                     break
             record = {key: value for key, value in info["episode"].items()
-                      if key not in ("wall_time_s", "solver_idle_s")}
+                      if key not in ("wall_time_s", "solver_idle_s", "solver_time_s")}
             runs.append((info["iterations"], info["outcome"], info["cause"], rewards, record))
             # the learner only ever sees finite float32 states well below the blow-up (<= 2 x the limit)
             states = np.array([o[0] for o in observations])

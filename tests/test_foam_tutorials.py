@@ -199,3 +199,17 @@ def test_a_user_case_inlet_for_one_episode_needs_a_fixed_value_inlet(tmp_path: P
             env.reset(options={"inlet_velocity": 30.0})
         obs, info = env.reset(seed=0)  # the case's own inlet still works
         assert np.isnan(info["inlet_velocity"]) and obs[0] > 0
+
+
+def test_a_case_under_a_path_with_spaces_runs_and_a_work_dir_with_spaces_is_refused(tmp_path: Path) -> None:
+    """OpenFOAM itself cannot run a case whose path has a space; the bridge only copies the user's case,
+    so the case may live anywhere, and a work_dir it cannot use is refused up front."""
+    source = tmp_path / "my cases" / "pitzDaily"
+    shutil.copytree(TUTORIALS / "pitzDaily", source)
+    with FoamCaseEnv(_cfg(tmp_path, source, max_iterations=100)) as env:
+        env.reset()
+        _, _, _, _, info = env.step((0.9, 0.9))
+    assert info["outcome"] in ("running", "truncated") and info["iterations"] == 50
+    with pytest.raises(ValueError, match="contains whitespace") as raised:
+        FoamCaseEnv(_cfg(tmp_path, "pitzDaily", work_dir=tmp_path / "work dir"))
+    assert len(str(raised.value).splitlines()) == 1 and not (tmp_path / "work dir").exists()

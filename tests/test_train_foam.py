@@ -4,6 +4,7 @@ killed with SIGKILL and resumed (no orphaned solver, no torn or duplicate record
 from __future__ import annotations
 
 import json
+import math
 import os
 import signal
 import subprocess
@@ -11,6 +12,8 @@ import sys
 import time
 from pathlib import Path
 
+import jax
+import numpy as np
 import pytest
 from foam_marks import needs_openfoam
 
@@ -152,3 +155,57 @@ def test_sigkill_then_resume_leaves_no_solver_and_no_duplicate(tmp_path):
     assert summary["final_mean_iterations"] == pytest.approx(sum(r["iterations"] for r in rows) / len(rows))
     assert 0 < summary["pool_utilisation"] <= 1 and summary["episodes_per_hour"] > 0
     assert _no_solver_left(tmp)
+
+
+def test_reward_kind_sets_its_scale_and_is_fixed_on_resume(capsys, tmp_path):
+    scales = {}
+    for kind in ("iterations", "linear-iterations", "solver-time"):
+        assert main(["train-foam", "--print-config", "--reward", kind]) == 0
+        printed = json.loads(capsys.readouterr().out)
+        assert printed["foam"]["reward"] == kind
+        scales[kind] = printed["ppo"]["reward_scale"]
+    assert scales == {"iterations": 1e-3, "linear-iterations": 1e-4, "solver-time": 0.1}
+    assert main(["train-foam", "--print-config", "--reward", "linear-iterations",
+                 "--reward-scale", "2e-4"]) == 0
+    assert json.loads(capsys.readouterr().out)["ppo"]["reward_scale"] == 2e-4  # a flag beats the default
+    code, err = run_cli(capsys, "--resume", str(tmp_path), "--reward", "solver-time")
+    assert code == 2 and "--reward cannot be used with --resume" in err
+
+
+def test_episodes_csv_of_an_older_version_loads_without_the_cost_columns(tmp_path):
+    old = tmp_path / "episodes.csv"
+    old.write_text("index,env,update,seed,inlet_velocity,steps,iterations,return,outcome,cause,wall_time_s,"
+                   "solver_idle_s,actions\n0,0,1,5,40.0,3,250,-250.0,converged,,4.5,0.1,\"[[0.9, 0.9]]\"\n"
+                   "1,1,1,6,41.0,3,260,-260.0,converged,,4.5\n")  # the second row is short: dropped
+    log = EpisodeLog.load(old, 10)
+    assert [r["iterations"] for r in log.rows] == [250]
+    assert math.isnan(log.rows[0]["linear_iterations"]) and math.isnan(log.moving_mean("solver_time_s"))
+    log.flush()  # rewritten with the new columns, empty for the old rows
+    assert EpisodeLog.load(old, 10).rows[0]["return"] == -250.0
+    assert "linear_iterations,solver_time_s" in old.read_text().splitlines()[0]
+
+
+@needs_openfoam
+def test_init_from_starts_with_the_other_runs_network_and_refuses_a_mismatch(capsys, tmp_path):
+    from jaxsimrl.introspect import load_policy
+
+    source, tuned = tmp_path / "source", tmp_path / "tuned"
+    assert main(["train-foam", *TINY, "--episodes", "2", "--seed", "1", "--out", str(source)]) == 0
+    # a learning rate of ~0 keeps the network where it started: it must be the source's, not a new one
+    assert main(["train-foam", *TINY, "--episodes", "2", "--seed", "2", "--lr", "1e-12", "--init-from",
+                 str(source), "--out", str(tuned)]) == 0
+    capsys.readouterr()
+    before, after = load_policy(source), load_policy(tuned)
+    leaves = zip(jax.tree.leaves(before.params.params), jax.tree.leaves(after.params.params), strict=True)
+    assert all(np.allclose(a, b, atol=1e-6) for a, b in leaves)
+    # the observation statistics carry on from the source's
+    assert float(after.params.normalizer.count) > float(before.params.normalizer.count) > 0
+    assert json.loads((tuned / "config.json").read_text())["init_from"]["update"] == before.update
+    code, err = run_cli(capsys, *TINY, "--init-from", str(source), "--out", str(tmp_path / "bad"),
+                        "--config", _write(tmp_path / "wide.json", {"foam": {"action_high": [0.99, 0.99]}}))
+    assert code == 2 and "acts in the box" in err and not (tmp_path / "bad").exists()
+
+
+def _write(path: Path, content: dict) -> str:
+    path.write_text(json.dumps(content))
+    return str(path)

@@ -9,7 +9,9 @@ training criterion, 2000 episodes, the built-in backward-facing step (SIMPLEC, k
 One update = ``steps_per_update`` env steps (see :func:`foam_ppo_defaults` for the sizes and why); after
 every update: metrics rows, episodes.csv, a checkpoint, summary.json (in that order, Ctrl-C held back).
 ``--resume RUN_DIR`` continues from the last checkpoint with new episodes in every env (the solvers of
-the episodes in flight did not survive the process).
+the episodes in flight did not survive the process). ``--init-from RUN_DIR`` starts a new run from
+another run's trained network and observation statistics (e.g. a coarse-mesh policy fine-tuned on the
+full mesh), with a fresh optimiser and new episodes.
 """
 
 from __future__ import annotations
@@ -31,6 +33,10 @@ INTERRUPTED = 130
 FOAM_BATCH = 128
 #: The built-in case as the paper's code ran it (a user's --case keeps its own settings instead).
 PAPER_CASE = {"simple_variant": "SIMPLEC", "relax_k_omega": 0.8, "inlet_velocity": [35.0, 65.0]}
+#: Default reward scale per --reward: each makes a step of the built-in case ~ -0.1 (a SIMPLE iteration
+#: costs ~11 linear-solver iterations and, on this project's 2-core machine, 6-25 ms of solver CPU time
+#: from mesh 0.5 to the full mesh; experiments/foam/eval-full/eval.csv).
+REWARD_SCALES = {"iterations": 1e-3, "linear-iterations": 1e-4, "solver-time": 0.1}
 #: PPOConfig fields with a train-foam flag (the others come from --config).
 KNOBS: tuple[tuple[str, Any, str], ...] = (
     ("steps_per_update", positive_int, f"env steps per PPO update over all envs (default {FOAM_BATCH}, "
@@ -42,11 +48,13 @@ KNOBS: tuple[tuple[str, Any, str], ...] = (
     ("ent_coef", float, "entropy bonus coefficient (>= 0), on the squashed policy's entropy"),
     ("update_epochs", positive_int, "SGD epochs over each update's batch"),
     ("num_minibatches", positive_int, "minibatches per epoch"),
-    ("reward_scale", positive_float, "rewards (minus iterations) are multiplied by this before GAE"),
+    ("reward_scale", positive_float, "rewards (minus the --reward cost) are multiplied by this before GAE "
+                                     "(default: 1e-3 for iterations, 1e-4 for linear-iterations, 0.1 for "
+                                     "solver-time)"),
 )
 
 
-def foam_ppo_defaults(num_envs: int) -> dict[str, Any]:
+def foam_ppo_defaults(num_envs: int, reward: str = "iterations") -> dict[str, Any]:
     """The PPOConfig fields train-foam sets before --config and flags.
 
     The paper's network and optimiser (2 x 64 tanh MLP, lr 2.5e-4, gamma 1). Batch sizes: the paper's code
@@ -55,19 +63,20 @@ def foam_ppo_defaults(num_envs: int) -> dict[str, Any]:
     with gamma = 1, while an update still comes every few minutes on 2 cores. 4 minibatches x 10 epochs
     gives 40 SGD steps per update, as RLlib's 30 passes over 1.5 minibatches did. The MLP needs no
     sequence: seq_len 1. Rewards are -100 per step and down to -max_iterations on a failure: a reward
-    scale of 1e-3 keeps returns (and so the value targets) O(1) (-0.4 to -4).
+    scale of 1e-3 keeps returns (and so the value targets) O(1) (-0.4 to -4); the other rewards' scales
+    (REWARD_SCALES) do the same for their units.
     """
     per_env = max(4, math.ceil(FOAM_BATCH / num_envs))
     per_env += -per_env % 4
     return {"num_envs": num_envs, "steps_per_update": per_env * num_envs, "network": "mlp",
             "hidden_sizes": [64, 64], "activation": "tanh", "lr": 2.5e-4, "gamma": 1.0, "gae_lambda": 0.95,
-            "update_epochs": 10, "num_minibatches": 4, "seq_len": 1, "reward_scale": 1e-3,
+            "update_epochs": 10, "num_minibatches": 4, "seq_len": 1, "reward_scale": REWARD_SCALES[reward],
             "updates_per_chunk": 1, "ent_coef": 0.0}
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add train-foam to the ``jaxsimrl`` dispatcher."""
-    from foam_bridge.config import MESH_SCALE_USABLE_MIN
+    from foam_bridge.config import MESH_SCALE_USABLE_MIN, REWARDS
 
     p = subparsers.add_parser(
         "train-foam", help="train PPO to set simpleFoam's relaxation factors (real OpenFOAM cases)",
@@ -84,6 +93,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    f"default); >= {MESH_SCALE_USABLE_MIN:g} (coarser meshes are a different control problem)")
     p.add_argument("--step-height", type=positive_float, help="step height in m (default 0.0127 = h)")
     p.add_argument("--max-iterations", type=positive_int, help="iteration cap per episode (default 4000)")
+    p.add_argument("--reward", choices=REWARDS, help="the cost an episode minimises: SIMPLE iterations "
+                   "(default, the paper's), the linear solvers' inner iterations, or the solver's CPU "
+                   "seconds (not bit-reproducible)")
     p.add_argument("--case", metavar="CASE_DIR", help="a simpleFoam case of your own instead of the "
                    "built-in backward-facing step")
     p.add_argument("--backend", choices=("local", "ray"), help="worker pool: local processes (default) or "
@@ -96,6 +108,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=seed_type(31), help="PRNG seed (default 0): network, actions and episode "
                    "seeds")
     p.add_argument("--out", metavar="DIR", help="run directory to create (default runs/foam-<UTC timestamp>)")
+    p.add_argument("--init-from", metavar="RUN_DIR", help="start from the network and observation "
+                   "statistics of RUN_DIR's last checkpoint (a train-foam run with the same network, "
+                   "observation and action box), e.g. to fine-tune a coarse-mesh policy on the full mesh")
     p.add_argument("--resume", metavar="RUN_DIR", help="continue RUN_DIR from its last checkpoint; only "
                    "--episodes (raised), --pool, --backend and --ray-address may be given")
     p.add_argument("--tensorboard", action="store_true", help="also write the metrics as TensorBoard event "
@@ -118,6 +133,7 @@ class FoamPlan:
     run_path: Path
     resume: bool
     record: dict[str, Any] = field(default_factory=dict)
+    init_from: Any = None  # jaxsimrl.introspect.LoadedPolicy whose network the run starts from
 
 
 def _fresh_plan(args: argparse.Namespace) -> FoamPlan:
@@ -127,13 +143,14 @@ def _fresh_plan(args: argparse.Namespace) -> FoamPlan:
 
     extra = _read_config(args.config) if args.config else {}
     num_envs = args.num_envs or args.pool or 2
-    ppo_values = {**foam_ppo_defaults(num_envs), **extra.get("ppo", {})}
-    ppo_values.update({name: getattr(args, name) for name, _, _ in KNOBS if getattr(args, name) is not None})
-    ppo_values["steps_per_update"] += -ppo_values["steps_per_update"] % (ppo_values["num_minibatches"]
-                                                                         * num_envs)
     try:
-        ppo = PPOConfig.from_dict(ppo_values)
         foam = _foam_config(args, extra.get("foam", {}))
+        ppo_values = {**foam_ppo_defaults(num_envs, foam.reward), **extra.get("ppo", {})}
+        ppo_values.update({name: getattr(args, name) for name, _, _ in KNOBS
+                           if getattr(args, name) is not None})
+        ppo_values["steps_per_update"] += -ppo_values["steps_per_update"] % (ppo_values["num_minibatches"]
+                                                                             * num_envs)
+        ppo = PPOConfig.from_dict(ppo_values)
         pool = validate_pool(num_envs, args.pool)
     except (TypeError, ValueError) as err:
         raise UsageError(f"invalid config: {err}") from None
@@ -147,8 +164,34 @@ def _fresh_plan(args: argparse.Namespace) -> FoamPlan:
         RunDir.check_new(out)
     except ValueError as err:
         raise UsageError(str(err)) from None
+    init_from = _starting_policy(args.init_from, ppo, foam) if args.init_from else None
     return FoamPlan(ppo, foam, args.episodes or 2000, 0 if args.seed is None else args.seed, pool,
-                    args.backend or "local", args.ray_address, out, resume=False)
+                    args.backend or "local", args.ray_address, out, resume=False, init_from=init_from)
+
+
+def _starting_policy(run_dir: str, ppo: Any, foam: Any) -> Any:
+    """The policy of ``--init-from``, checked to fit this run's network, observation and action box."""
+    import numpy as np
+
+    from jaxsimrl.introspect import load_policy
+
+    try:
+        policy = load_policy(run_dir)
+    except ValueError as err:
+        raise UsageError(f"--init-from: {err}") from None
+    if policy.record.get("env") != "foam":
+        raise UsageError(f"--init-from: {run_dir} is not a train-foam run")
+    mine = (ppo.network, tuple(ppo.hidden_sizes), ppo.activation, foam.observation_size)
+    trained = policy.config
+    theirs = (trained.network, tuple(trained.hidden_sizes), trained.activation, policy.obs_dim)
+    if mine != theirs:
+        raise UsageError(f"--init-from: {run_dir} has (network, hidden sizes, activation, observation size) "
+                         f"{theirs}, this run {mine}")
+    box = (list(foam.action_low), list(foam.action_high))
+    if not (np.allclose(policy.action_low, box[0]) and np.allclose(policy.action_high, box[1])):
+        raise UsageError(f"--init-from: {run_dir} acts in the box {policy.action_low.tolist()}-"
+                         f"{policy.action_high.tolist()}, this run in {box[0]}-{box[1]}")
+    return policy
 
 
 def _foam_config(args: argparse.Namespace, extra: dict[str, Any]) -> Any:
@@ -158,7 +201,7 @@ def _foam_config(args: argparse.Namespace, extra: dict[str, Any]) -> Any:
 
     values = {**foam_config_to_json(FoamEnvConfig()), **extra}
     flags = {"mesh_scale": args.mesh_scale, "step_height": args.step_height,
-             "max_iterations": args.max_iterations, "case_dir": args.case}
+             "max_iterations": args.max_iterations, "case_dir": args.case, "reward": args.reward}
     values.update({name: value for name, value in flags.items() if value is not None})
     if values.get("case_dir") is None:  # the built-in case: its paper defaults, written out in config.json
         for name, value in PAPER_CASE.items():
@@ -175,7 +218,8 @@ def _resume_plan(args: argparse.Namespace) -> FoamPlan:
     from jaxsimrl.envs.foam_config import foam_config_from_json
     from jaxsimrl.runs.run_dir import RunDir
 
-    fixed = ["config", "num_envs", "mesh_scale", "step_height", "max_iterations", "case", "seed", "out"]
+    fixed = ["config", "num_envs", "mesh_scale", "step_height", "max_iterations", "case", "reward", "seed",
+             "out", "init_from"]
     changed = [name for name in fixed + [k for k, _, _ in KNOBS] if getattr(args, name) is not None]
     if changed:
         flag = "--" + changed[0].replace("_", "-")
@@ -283,7 +327,7 @@ def _train(plan: FoamPlan, run: Any, on_chunk: Any, tensorboard: bool = False) -
                 log = MetricsLog.load(run, done)
                 log.write()
             else:
-                state, log = trainer.init(key), MetricsLog(run)
+                state, log = _initial_state(trainer, key, plan.init_from), MetricsLog(run)
             vec.raise_if_failed()
             record = _config_record(plan)
             run.write_config(record)
@@ -297,6 +341,18 @@ def _train(plan: FoamPlan, run: Any, on_chunk: Any, tensorboard: bool = False) -
             return session.write_summary()
     finally:
         vec.batch.close()
+
+
+def _initial_state(trainer: Any, key: Any, start: Any) -> Any:
+    """A fresh state; with ``--init-from``, its network and normaliser are the starting policy's."""
+    import jax
+
+    state = trainer.init(key)
+    if start is None:
+        return state
+    placed = jax.tree.map(lambda new, old: jax.device_put(jax.numpy.asarray(old, new.dtype), new.sharding),
+                          (state.params, state.normalizer), (start.params.params, start.params.normalizer))
+    return state.replace(params=placed[0], normalizer=placed[1])
 
 
 def _restored(trainer: Any, checkpoints: Any, key: Any, done: int) -> Any:
@@ -334,7 +390,10 @@ def foam_summary(summary: dict[str, Any], episodes: Any, plan: FoamPlan) -> dict
     count = len(episodes.rows)
     return {"episodes": count, "episodes_target": plan.episodes, "complete": count >= plan.episodes,
             "episodes_per_hour": count / wall * 3600 if wall > 0 else math.nan,
-            "final_mean_iterations": episodes.moving_iterations(), "failures": episodes.failures(),
+            "final_mean_iterations": episodes.moving_iterations(),
+            "final_mean_linear_iterations": episodes.moving_mean("linear_iterations"),
+            "final_mean_solver_time_s": episodes.moving_mean("solver_time_s"),
+            "failures": episodes.failures(),
             "outcomes": episodes.outcomes(), "pool": plan.pool,
             "pool_utilisation": episodes.busy_s() / (plan.pool * wall) if wall > 0 else math.nan}
 
@@ -348,6 +407,8 @@ def _config_record(plan: FoamPlan) -> dict[str, Any]:
 
     now = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
     base = plan.record if plan.resume else {"env": "foam", "seed": plan.seed, "created_utc": now}
+    if plan.init_from is not None:
+        base["init_from"] = {"run_dir": str(plan.init_from.run_dir), "update": plan.init_from.update}
     record = {**base, "ppo": plan.ppo.to_dict(), "foam": foam_config_to_json(plan.foam),
               "episodes_target": plan.episodes, "pool": plan.pool, "backend": plan.backend,
               "jax_version": jax.__version__, "jaxsimrl_version": version("jaxsimrl")}

@@ -1,10 +1,12 @@
 """episodes.csv: one row per finished episode of a host-env (OpenFOAM) training run, and its statistics.
 
-    index, env, update, seed, inlet_velocity, steps, iterations, return, outcome, cause, wall_time_s,
-    solver_idle_s, actions
+    index, env, update, seed, inlet_velocity, steps, iterations, linear_iterations, solver_time_s, return,
+    outcome, cause, wall_time_s, solver_idle_s, actions
 
 ``update`` is the PPO update whose rollout the episode ended in (1-based); ``actions`` is the JSON list of
-the (alpha_u, alpha_p) pairs it took. The file is rewritten whole and atomically after every update,
+the (alpha_u, alpha_p) pairs it took. ``linear_iterations`` (inner iterations of every linear solve) and
+``solver_time_s`` (the solver's CPU seconds) are the episode's other costs whatever the run's reward (empty
+in files written before they existed). The file is rewritten whole and atomically after every update,
 before that update's checkpoint; on resume from checkpoint N the rows of updates after N are dropped (the
 same rule as the metrics files), so a run killed anywhere has no torn and no duplicate row.
 """
@@ -23,8 +25,12 @@ from typing import Any
 from jaxsimrl.runs.atomic import atomic_write_text
 
 EPISODES_FILE = "episodes.csv"
-COLUMNS = ("index", "env", "update", "seed", "inlet_velocity", "steps", "iterations", "return", "outcome",
-           "cause", "wall_time_s", "solver_idle_s", "actions")
+COLUMNS = ("index", "env", "update", "seed", "inlet_velocity", "steps", "iterations", "linear_iterations",
+           "solver_time_s", "return", "outcome", "cause", "wall_time_s", "solver_idle_s", "actions")
+#: Float columns; an empty cell reads as NaN.
+_FLOATS = ("inlet_velocity", "linear_iterations", "solver_time_s", "return", "wall_time_s", "solver_idle_s")
+#: Columns that files of older versions lack (read as NaN there).
+_ADDED_LATER = ("linear_iterations", "solver_time_s")
 #: The paper plots the moving average of iterations to converge over this many episodes.
 MOVING_WINDOW = 100
 
@@ -36,6 +42,8 @@ def episode_row(env_id: int, update: int, info: dict[str, Any]) -> dict[str, Any
     return {"env": int(env_id), "update": int(update), "seed": record.get("seed"),
             "inlet_velocity": _number(record.get("inlet_velocity")), "steps": len(actions),
             "iterations": int(record.get("iterations", info.get("iterations", 0))),
+            "linear_iterations": _number(record.get("linear_iterations")),
+            "solver_time_s": _number(record.get("solver_time_s")),
             "return": _number(record.get("return")),
             "outcome": str(record.get("outcome", info.get("outcome", ""))),
             "cause": str(record.get("cause", info.get("cause", ""))),
@@ -89,8 +97,13 @@ class EpisodeLog:
     # ---- statistics -----------------------------------------------------------------------------
     def moving_iterations(self, window: int = MOVING_WINDOW) -> float:
         """Mean iterations of the last ``window`` episodes (NaN before the first)."""
+        return self.moving_mean("iterations", window)
+
+    def moving_mean(self, column: str, window: int = MOVING_WINDOW) -> float:
+        """Mean of a numeric column over the last ``window`` episodes (NaN before the first, or if a row
+        lacks it)."""
         last = self.rows[-window:]
-        return statistics.fmean(r["iterations"] for r in last) if last else math.nan
+        return statistics.fmean(float(r[column]) for r in last) if last else math.nan
 
     def outcomes(self) -> dict[str, int]:
         """Episodes per outcome."""
@@ -117,8 +130,9 @@ def _parse(raw: dict[str, str]) -> dict[str, Any] | None:
                                "steps": int(raw["steps"]), "iterations": int(raw["iterations"]),
                                "outcome": raw["outcome"], "cause": raw["cause"],
                                "actions": json.loads(raw["actions"])}
-        for name in ("inlet_velocity", "return", "wall_time_s", "solver_idle_s"):
-            row[name] = float(raw[name]) if raw[name] != "" else math.nan
+        for name in _FLOATS:
+            text = raw.get(name, "") if name in _ADDED_LATER else raw[name]
+            row[name] = float(text) if text != "" else math.nan  # a short row's None: TypeError, dropped
     except (KeyError, TypeError, ValueError):
         return None
     return row
