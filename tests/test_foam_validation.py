@@ -123,3 +123,21 @@ def test_real_coarse_run_reattaches_plausibly(tmp_path: Path) -> None:
         assert u[(y_h > 0) & (y_h < 0.5)].min() < -0.02
     y_h, u = result.profiles[10.0]
     assert np.all(u[1:-1] > 0)
+
+
+@needs_openfoam
+def test_real_coarse_run_of_the_2h_step_is_measured_in_its_own_step_height(tmp_path: Path) -> None:
+    """The 2h geometry (0.4 mesh): lengths in H = 2h from the step and from the floor behind it."""
+    script = _load_script()
+    result = script.validate(0.4, 600, tmp_path, write_every=300, stations_xh=(1.0, 10.0), step_height=2 * H)
+    assert result.geometry.suffix == "_2h" and result.geometry.top == pytest.approx(5.0)
+    assert result.run.cells > 3276  # the deeper step has more cells across it
+    # a bubble behind the step, reattaching a few step heights on (measured: ~6.8 H)
+    assert 4.0 < result.reattachment_xh < 9.0
+    wall = result.wall
+    assert np.all(wall.cf[(wall.x_h > 1.5) & (wall.x_h < 4)] < 0) and np.all(wall.cf[wall.x_h > 10] > 0)
+    for y_H, u in result.profiles.values():  # from the floor (no slip) to the upper wall at 5 H
+        assert y_H[0] == pytest.approx(0.0, abs=1e-9) and abs(u[0]) < 1e-6 and y_H[-1] == pytest.approx(5.0)
+    y_H, u = result.profiles[1.0]
+    assert u[(y_H > 0) & (y_H < 0.5)].min() < -0.02  # reverse flow in the bubble, below the step's top
+    assert np.all(u[(y_H > 1.5) & (y_H < 4)] > 0.9)  # the core flow

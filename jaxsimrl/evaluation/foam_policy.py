@@ -1,7 +1,7 @@
 """A train-foam run's policy, loaded for evaluation, and a batched actor for many episodes at once.
 
 :func:`load_foam_run` reads ``RUN_DIR/config.json`` (``{"env": "foam", "seed", "ppo", "foam"}``) and the
-last checkpoint (restored without a template: the acting part of the RunnerState, ``params`` and
+last checkpoint through :func:`jaxsimrl.load_policy` (the acting part of the RunnerState: ``params`` and
 ``normalizer``). :class:`PolicyActor` acts for a batch of episodes that each run at their own pace:
 every row gets its own PRNG key ``fold_in(fold_in(PRNGKey(seed), uid), step)``, so an episode's
 sampled actions depend only on (seed, its uid, its step), never on which other episodes shared the
@@ -15,15 +15,12 @@ from pathlib import Path
 from typing import Any
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 
 from foam_bridge.config import FoamEnvConfig
 from foam_bridge.env import action_spec
 from jaxsimrl.agents.ppo.config import PPOConfig
-from jaxsimrl.agents.ppo.normalizer import NormalizerState
 from jaxsimrl.agents.ppo.policy import Policy, PolicyParams
-from jaxsimrl.envs.foam_config import foam_config_from_json
 
 
 @dataclass(frozen=True)
@@ -54,8 +51,9 @@ class FoamActionBox:
 
 
 def load_foam_run(path: str | Path) -> FoamRun:
-    """The config and last checkpoint of a train-foam run directory; one-line ValueError if it is not one."""
-    from jaxsimrl.runs.checkpoint import Checkpoints
+    """The config and last checkpoint of a train-foam run directory (read by jaxsimrl.load_policy); one-line
+    ValueError if it is not one."""
+    from jaxsimrl.introspect import load_policy
     from jaxsimrl.runs.run_dir import RunDir
 
     run = RunDir.existing(path)
@@ -63,30 +61,9 @@ def load_foam_run(path: str | Path) -> FoamRun:
     if record.get("env") != "foam" or not isinstance(record.get("foam"), dict):
         raise ValueError(f"{run.path} is not a train-foam run (its config.json has env "
                          f"{record.get('env')!r}; eval-foam needs env 'foam' and a 'foam' section)")
-    config = PPOConfig.from_dict(record["ppo"])
-    foam = foam_config_from_json(record["foam"])
-    with Checkpoints(run.checkpoints, writable=False) as checkpoints:
-        step = checkpoints.latest_step()
-        state, _ = checkpoints.restore(None, step)
-    params = _policy_params(state, foam, f"checkpoint {step} in {run.checkpoints}")
-    update = int(np.asarray(state.get("update_step", step)))
-    return FoamRun(run.path, config, foam, params, int(record.get("seed", 0)), step, update)
-
-
-def _policy_params(state: Any, foam: FoamEnvConfig, where: str) -> PolicyParams:
-    """params and normalizer of a restored state (nested dicts); checks the observation size."""
-    if not isinstance(state, dict) or "params" not in state or "normalizer" not in state:
-        raise ValueError(f"{where} has no params/normalizer: not a PPO training state")
-    stats = state["normalizer"]
-    try:
-        normalizer = NormalizerState(jnp.asarray(stats["count"]), jnp.asarray(stats["mean"]),
-                                     jnp.asarray(stats["m2"]))
-    except (KeyError, TypeError):
-        raise ValueError(f"{where}: the normalizer has no count/mean/m2") from None
-    if normalizer.mean.shape != (foam.observation_size,):
-        raise ValueError(f"{where}: observations of size {normalizer.mean.shape[-1]}, but the run's foam "
-                         f"config gives {foam.observation_size}")
-    return PolicyParams(jax.tree.map(jnp.asarray, state["params"]), normalizer)
+    policy = load_policy(run.path)
+    return FoamRun(run.path, policy.config, policy.env_params, policy.params, int(record.get("seed", 0)),
+                   policy.checkpoint, policy.update)
 
 
 class PolicyActor:

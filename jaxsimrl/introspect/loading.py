@@ -39,7 +39,7 @@ class LoadedPolicy:
 
     def __init__(self, config: PPOConfig, spec: EnvSpec, params: PolicyParams, update: int = 0,
                  env_steps: int = 0, record: dict[str, Any] | None = None, run_dir: Path | None = None,
-                 seed: int = 0) -> None:
+                 seed: int = 0, checkpoint: int | None = None) -> None:
         self.config = config
         self.env, self.env_params = spec.env, spec.params
         self.policy = Policy(config, spec.env, spec.params)  # the network and action box it trained with
@@ -47,6 +47,7 @@ class LoadedPolicy:
         self.update, self.env_steps = update, env_steps
         self.record = record or {}
         self.run_dir = run_dir
+        self.checkpoint = checkpoint  # the checkpoint step it was read from (None: not from a run)
         self.action_low, self.action_high = self.policy.low, self.policy.high
         self.obs_dim = int(params.normalizer.mean.shape[0])
         self.action_dim = int(self.action_low.shape[0])
@@ -188,7 +189,7 @@ def load_policy(run_dir: str | Path, checkpoint: int | None = None, seed: int = 
     params = _policy_params(tree, config, spec, f"checkpoint {step} in {run.checkpoints}")
     update = int(np.asarray(tree.get("update_step", meta.get("update", step))))
     env_steps = int(meta.get("env_steps", update * config.steps_per_update))
-    return LoadedPolicy(config, spec, params, update, env_steps, record, run.path, seed)
+    return LoadedPolicy(config, spec, params, update, env_steps, record, run.path, seed, checkpoint=step)
 
 
 def _config_of(path: Path, record: dict[str, Any]) -> PPOConfig:
