@@ -18,15 +18,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from jaxsimrl.evaluation.curves import trailing_mean  # noqa: E402
 from jaxsimrl.runs.episodes import MOVING_WINDOW, EpisodeLog  # noqa: E402
-
-
-def moving_mean(values: np.ndarray, window: int) -> np.ndarray:
-    """Mean of the last ``window`` values at every index (fewer at the start)."""
-    sums = np.cumsum(np.insert(values.astype(float), 0, 0.0))
-    idx = np.arange(1, len(values) + 1)
-    start = np.maximum(idx - window, 0)
-    return (sums[idx] - sums[start]) / (idx - start)
 
 
 def plot(run: Path, out: Path) -> None:
@@ -38,7 +31,7 @@ def plot(run: Path, out: Path) -> None:
     per_update = {u: np.array([a for r in rows if r["update"] == u for a in r["actions"]]) for u in updates}
     fig, (left, right) = plt.subplots(1, 2, figsize=(12, 4.2), constrained_layout=True)
     left.plot(iterations, ".", ms=2, alpha=0.35, color="tab:gray", label="episode")
-    left.plot(moving_mean(iterations, MOVING_WINDOW), color="tab:blue", lw=2,
+    left.plot(trailing_mean(iterations, MOVING_WINDOW), color="tab:blue", lw=2,
               label=f"moving mean, last {MOVING_WINDOW}")
     left.set(xlabel="episode", ylabel="SIMPLE iterations to converge",
              ylim=(0, np.percentile(iterations, 99.5)),

@@ -40,11 +40,16 @@ def episode_curve(rows: list[Row], window: int = 5) -> EpisodeCurve:
     counts = np.array([int(r["episodes"]) for r in ended], dtype=int)
     returns = np.repeat([float(r["mean_episode_return"]) for r in ended], counts)
     steps = np.repeat([int(r["env_steps"]) for r in ended], counts)
-    sums = np.cumsum(np.concatenate([[0.0], returns]))
-    index = np.arange(1, len(returns) + 1)
+    return EpisodeCurve(np.arange(1, len(returns) + 1), steps, returns, trailing_mean(returns, window))
+
+
+def trailing_mean(values: np.ndarray, window: int) -> np.ndarray:
+    """The mean of the last ``window`` values at every index (of all of them before the first window)."""
+    values = np.asarray(values, float)
+    sums = np.cumsum(np.concatenate([[0.0], values]))
+    index = np.arange(1, len(values) + 1)
     first = np.maximum(index - window, 0)
-    average = (sums[index] - sums[first]) / (index - first) if len(returns) else returns
-    return EpisodeCurve(index, steps, returns, average)
+    return (sums[index] - sums[first]) / (index - first) if len(values) else values
 
 
 def column(rows: list[Row], name: str) -> np.ndarray:
