@@ -119,7 +119,7 @@ def _check_records(run: Path) -> tuple[list[dict], list[dict]]:
         assert r["steps"] == len(r["actions"])
         assert all(0.2 <= a <= 0.95 for pair in r["actions"] for a in pair)
         if r["outcome"] == "converged":  # K iterations take ceil(K / 100) steps, and the return is -K
-            assert r["return"] == -r["iterations"]
+            assert r["return"] == -r["iterations"] and r["linear_iterations"] > r["iterations"]
             assert 100 * (r["steps"] - 1) < r["iterations"] <= 100 * r["steps"]
     return rows, metrics
 
@@ -153,6 +153,10 @@ def test_sigkill_then_resume_leaves_no_solver_and_no_duplicate(tmp_path):
     summary = json.loads((run / "summary.json").read_text())
     assert summary["episodes"] == len(rows) >= 8 and summary["complete"]
     assert summary["final_mean_iterations"] == pytest.approx(sum(r["iterations"] for r in rows) / len(rows))
+    linear = sum(r["linear_iterations"] for r in rows) / len(rows)
+    assert summary["final_mean_linear_iterations"] == pytest.approx(linear)
+    assert linear > 5 * summary["final_mean_iterations"]
+    assert summary["final_mean_solver_time_s"] > 0
     assert 0 < summary["pool_utilisation"] <= 1 and summary["episodes_per_hour"] > 0
     assert _no_solver_left(tmp)
 

@@ -391,11 +391,16 @@ def foam_summary(summary: dict[str, Any], episodes: Any, plan: FoamPlan) -> dict
     return {"episodes": count, "episodes_target": plan.episodes, "complete": count >= plan.episodes,
             "episodes_per_hour": count / wall * 3600 if wall > 0 else math.nan,
             "final_mean_iterations": episodes.moving_iterations(),
-            "final_mean_linear_iterations": episodes.moving_mean("linear_iterations"),
-            "final_mean_solver_time_s": episodes.moving_mean("solver_time_s"),
+            # None where a row lacks the cost (episodes of a run written before it was recorded)
+            "final_mean_linear_iterations": _finite_or_none(episodes.moving_mean("linear_iterations")),
+            "final_mean_solver_time_s": _finite_or_none(episodes.moving_mean("solver_time_s")),
             "failures": episodes.failures(),
             "outcomes": episodes.outcomes(), "pool": plan.pool,
             "pool_utilisation": episodes.busy_s() / (plan.pool * wall) if wall > 0 else math.nan}
+
+
+def _finite_or_none(value: float) -> float | None:
+    return value if math.isfinite(value) else None
 
 
 def _config_record(plan: FoamPlan) -> dict[str, Any]:
