@@ -13,6 +13,8 @@ ended one, and ``infos`` itself carries the reset info for ``i``. Infos are batc
 Seeding: ``seed`` (int, or one int per env) seeds one random stream per env; every episode, including
 auto-resets and the episode after a worker crash, is reset with a seed drawn from its env's stream.
 So the same seed and actions give the same episodes on any backend and after worker restarts.
+:meth:`BatchedFoamEnv.snapshot` and :meth:`BatchedFoamEnv.replay` carry the running episodes (and the
+streams) over to a new batch, e.g. across a training run's resume.
 
 ``step()`` never raises for a solver or worker fault (only for bad actions): a solver that crashed,
 diverged or hung ends its episode with that outcome; a dead or hung worker ends the episodes of its
@@ -25,6 +27,7 @@ raises when an env cannot start at all: a broken case or setup is the caller's t
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import time
@@ -239,6 +242,57 @@ class BatchedFoamEnv:
 
     def _observations(self) -> np.ndarray:
         return np.stack([tally.obs for tally in self._tallies]).astype(np.float32)
+
+    # ----- resuming ----------------------------------------------------------------------------
+    def snapshot(self) -> list[dict[str, Any]]:
+        """Each env's running episode as JSON-ready data, enough for :meth:`replay` in another batch
+        (another process): its reset seed, the actions taken, K, return and last observation, and the
+        env's seed stream (the seeds of the episodes to come)."""
+        return [{"seed": tally.seed, "actions": [list(pair) for pair in tally.actions],
+                 "iterations": tally.iterations, "return": tally.episode_return,
+                 "obs": [float(v) for v in tally.obs], "running": tally.seed is not None
+                 and not tally.reset_failure, "stream": json.dumps(self._streams[i].bit_generator.state)}
+                for i, tally in enumerate(self._tallies)]
+
+    def replay(self, snapshot: list[dict[str, Any]]) -> str:
+        """Bring every env to the episode state of ``snapshot``: reset it with the episode's seed and step
+        the same actions (the solver is deterministic), check K, the return and the observation, and
+        restore the seed streams. Returns "" when every env matches; otherwise why not, and the
+        batch must be reset before it is used."""
+        if len(snapshot) != self.num_envs or not all(entry.get("running") for entry in snapshot):
+            return f"the snapshot does not hold a running episode for each of the {self.num_envs} envs"
+        why = self._replay_resets(snapshot) or self._replay_steps(snapshot) or self._replay_differs(snapshot)
+        if not why:
+            for stream, entry in zip(self._streams, snapshot, strict=True):
+                stream.bit_generator.state = json.loads(entry["stream"])
+        return why
+
+    def _replay_resets(self, snapshot: list[dict[str, Any]]) -> str:
+        seeds = [int(entry["seed"]) for entry in snapshot]
+        for reply in self.backend.run([Request(i, "reset", {"seed": s, "options": None})
+                                       for i, s in enumerate(seeds)]):
+            if not reply.ok:
+                return f"env {reply.env_id}: reset failed: {reply.error or WORKER_DIED}"
+            self._start_tally(reply.env_id, seeds[reply.env_id], *reply.value)
+        return ""
+
+    def _replay_steps(self, snapshot: list[dict[str, Any]]) -> str:
+        for step in range(max(len(entry["actions"]) for entry in snapshot)):
+            due = {i: np.asarray(e["actions"][step], np.float64) for i, e in enumerate(snapshot)
+                   if len(e["actions"]) > step}
+            for reply in self.backend.run([Request(i, "step", {"action": a}) for i, a in due.items()]):
+                _, _, terminated, truncated, _ = self._step_result(reply, due[reply.env_id])
+                if terminated or truncated or not reply.ok:
+                    return f"env {reply.env_id}: its episode ended at replayed step {step + 1}"
+        return ""
+
+    def _replay_differs(self, snapshot: list[dict[str, Any]]) -> str:
+        for i, (tally, entry) in enumerate(zip(self._tallies, snapshot, strict=True)):
+            expected = (entry["iterations"], entry["return"], np.float32(entry["obs"]).tolist())
+            if (tally.iterations, tally.episode_return, tally.obs.tolist()) != expected:
+                return (f"env {i}: the replayed episode differs (K {tally.iterations}, snapshot "
+                        f"{entry['iterations']})")
+        return ""
 
     # ----- misc --------------------------------------------------------------------------------
     def iterations(self) -> np.ndarray:

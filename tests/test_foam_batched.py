@@ -180,3 +180,39 @@ def test_killed_worker_ends_only_its_episode_and_is_replaced(tmp_path):
 def _is_zombie(pid: int) -> bool:
     with open(f"/proc/{pid}/stat") as handle:
         return handle.read().split(")")[-1].split()[0] == "Z"
+
+
+@needs_openfoam
+def test_a_snapshot_replays_the_running_episodes_into_a_new_batch_exactly(tmp_path):
+    """Three steps, snapshot (through JSON, as a checkpoint holds it), then the original batch and a new
+    one with other seeds replayed from the snapshot go on identically: same observations, rewards and
+    episode ends, and the same seeds for the episodes after the auto-reset (the streams travel too)."""
+    import json
+
+    cfg = dataclasses.replace(COARSE, interval=50, max_iterations=400)
+    rng = np.random.default_rng(0)
+    schedule = [np.column_stack([rng.uniform(0.85, 0.95, 2), rng.uniform(0.5, 0.9, 2)]) for _ in range(12)]
+
+    def go_on(envs):
+        out = []
+        for actions in schedule[3:]:
+            obs, reward, terminated, truncated, infos = envs.step(actions)
+            out.append((obs.tolist(), reward.tolist(), terminated.tolist(), truncated.tolist(),
+                        envs.snapshot()[0]["seed"], envs.snapshot()[1]["seed"]))
+        return out
+
+    with BatchedFoamEnv(cfg, 2, pool=2, seed=5, work_dir=tmp_path / "a") as first:
+        first.reset()
+        for actions in schedule[:3]:
+            first.step(actions)
+        snapshot = json.loads(json.dumps(first.snapshot()))
+        assert [len(entry["actions"]) for entry in snapshot] == [3, 3]
+        expected = go_on(first)
+    assert any(step[2][0] or step[3][0] for step in expected)  # an episode ended and was auto-reset
+    with BatchedFoamEnv(cfg, 2, pool=2, seed=99, work_dir=tmp_path / "b") as second:
+        second.reset()
+        assert second.replay(snapshot) == ""
+        np.testing.assert_array_equal(second.iterations(), [e["iterations"] for e in snapshot])
+        assert go_on(second) == expected
+        tampered = [dict(snapshot[0], iterations=snapshot[0]["iterations"] + 1), snapshot[1]]
+        assert "differs" in second.replay(tampered)

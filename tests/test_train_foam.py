@@ -141,6 +141,7 @@ def test_sigkill_then_resume_leaves_no_solver_and_no_duplicate(tmp_path):
     out, err = resumed.communicate(timeout=600)
     assert resumed.returncode == 0, err
     assert "Traceback" not in err and "mean iterations over the last 100 episodes" in out
+    assert "episodes in flight replayed" in err, err
     rows, metrics = _check_records(run)
     saved = json.loads((run / "config.json").read_text())
     assert saved["episodes_target"] == 8 and len(saved["resumed_utc"]) == 1
@@ -159,6 +160,14 @@ def test_sigkill_then_resume_leaves_no_solver_and_no_duplicate(tmp_path):
     assert summary["final_mean_solver_time_s"] > 0
     assert 0 < summary["pool_utilisation"] <= 1 and summary["episodes_per_hour"] > 0
     assert _no_solver_left(tmp)
+    # the episodes in flight were replayed, so killed + resumed is the run that was never interrupted
+    reference = tmp_path / "reference"
+    uninterrupted = _train_process(reference, tmp, *TINY, "--out", str(reference), "--episodes", "8",
+                                   "--seed", "3")
+    assert uninterrupted.wait(timeout=600) == 0
+    same = ("env", "seed", "steps", "iterations", "outcome", "actions")
+    assert [[r[k] for k in same] for r in rows] == [
+        [r[k] for k in same] for r in EpisodeLog.load(reference / "episodes.csv", 10**9).rows]
 
 
 def test_reward_kind_sets_its_scale_and_is_fixed_on_resume(capsys, tmp_path):

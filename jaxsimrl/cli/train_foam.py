@@ -8,10 +8,14 @@ training criterion, 2000 episodes, the built-in backward-facing step (SIMPLEC, k
 
 One update = ``steps_per_update`` env steps (see :func:`foam_ppo_defaults` for the sizes and why); after
 every update: metrics rows, episodes.csv, a checkpoint, summary.json (in that order, Ctrl-C held back).
-``--resume RUN_DIR`` continues from the last checkpoint with new episodes in every env (the solvers of
-the episodes in flight did not survive the process). ``--init-from RUN_DIR`` starts a new run from
-another run's trained network and observation statistics (e.g. a coarse-mesh policy fine-tuned on the
-full mesh), with a fresh optimiser and new episodes.
+``--resume RUN_DIR`` continues from the last checkpoint. Every checkpoint also records the episodes in
+flight (each env's episode seed, actions so far, K, observation and seed stream): the solvers did not
+survive the process, so resume replays them (the solver is deterministic), checks K, return and
+observation against the record, and carries on mid-episode exactly as the run would have; where that
+fails (an older checkpoint, a changed machine) every env starts a new episode instead, and says so.
+``--init-from RUN_DIR`` starts a new run from another run's trained network and observation
+statistics (e.g. a coarse-mesh policy fine-tuned on the full mesh), with a fresh optimiser and new
+episodes.
 """
 
 from __future__ import annotations
@@ -29,6 +33,8 @@ from typing import Any
 from jaxsimrl.cli.errors import UsageError, positive_float, positive_int, seed_type
 
 INTERRUPTED = 130
+#: Key of the episodes in flight (BatchedFoamEnv.snapshot) in each checkpoint's record.
+IN_FLIGHT = "in_flight"
 #: Env steps per update, summed over envs: ~20-30 episodes of the paper's 4-8 steps (see foam_ppo_defaults).
 FOAM_BATCH = 128
 #: The built-in case as the paper's code ran it (a user's --case keeps its own settings instead).
@@ -323,7 +329,7 @@ def _train(plan: FoamPlan, run: Any, on_chunk: Any, tensorboard: bool = False) -
         with Checkpoints(run.checkpoints) as checkpoints, tensorboard_log(run.path, tensorboard) as tb:
             key = jax.random.PRNGKey(plan.seed)
             if plan.resume:
-                state = _restored(trainer, checkpoints, key, done)
+                state = _restored(trainer, checkpoints, key, done, vec)
                 log = MetricsLog.load(run, done)
                 log.write()
             else:
@@ -334,7 +340,8 @@ def _train(plan: FoamPlan, run: Any, on_chunk: Any, tensorboard: bool = False) -
             session = Session(run, _HostTrainer(trainer, vec, episodes, cursor), log, checkpoints,
                               meta={"config": record}, summary_extra={"run_dir": str(run.path)},
                               before_checkpoint=lambda _: episodes.flush(),
-                              summary_hook=lambda s: foam_summary(s, episodes, plan), tensorboard=tb)
+                              summary_hook=lambda s: foam_summary(s, episodes, plan), tensorboard=tb,
+                              checkpoint_meta=lambda: {IN_FLIGHT: vec.batch.snapshot()})
             with FoamProgress(plan.episodes, episodes, plan.pool, log) as progress:
                 train(session, state, done, progress, on_chunk,
                       until=lambda: len(episodes.rows) >= plan.episodes)
@@ -355,14 +362,34 @@ def _initial_state(trainer: Any, key: Any, start: Any) -> Any:
     return state.replace(params=placed[0], normalizer=placed[1])
 
 
-def _restored(trainer: Any, checkpoints: Any, key: Any, done: int) -> Any:
+def _restored(trainer: Any, checkpoints: Any, key: Any, done: int, vec: Any) -> Any:
+    """The state of checkpoint ``done`` with its episodes in flight replayed, else with new episodes."""
     import jax
 
     try:
-        state, _ = checkpoints.restore(jax.eval_shape(trainer.init, key), done)
+        state, meta = checkpoints.restore(jax.eval_shape(trainer.init, key), done)
     except ValueError as err:
         raise UsageError(f"cannot resume: {err}") from None
+    why = _replay_in_flight(vec, meta.get(IN_FLIGHT), state)
+    if not why:
+        sys.stderr.write(f"jaxsimrl train-foam: resumed at update {done} with its {vec.num_envs} episodes in "
+                         f"flight replayed\n")
+        return state
+    sys.stderr.write(f"jaxsimrl train-foam: resumed at update {done}; its episodes in flight were not "
+                     f"replayed ({why}): every env starts a new episode\n")
     return trainer.restart_episodes(state, jax.random.fold_in(key, done))
+
+
+def _replay_in_flight(vec: Any, snapshot: Any, state: Any) -> str:
+    """Replay a checkpoint's episodes in flight into the new batch; "" if it matches, else why not."""
+    import numpy as np
+
+    if not snapshot:
+        return "the checkpoint has no record of them"
+    saved = np.asarray(state.obs, np.float32).tolist()
+    if [np.float32(entry.get("obs", [])).tolist() for entry in snapshot] != saved:
+        return "the record does not match the checkpoint's observations"
+    return vec.batch.replay(snapshot)
 
 
 class _HostTrainer:

@@ -86,6 +86,8 @@ class Session:
     # Further summary.json entries computed after every chunk (may override "complete").
     summary_hook: Callable[[dict[str, Any]], dict[str, Any]] | None = None
     tensorboard: Any = None  # a TensorBoardWriter (runs/tensorboard.py) that gets the rows too, or None
+    # More JSON for each checkpoint's record, computed when it is saved (a host env's running episodes).
+    checkpoint_meta: Callable[[], dict[str, Any]] | None = None
 
     def write_summary(self) -> dict[str, Any]:
         """Write summary.json from the metrics rows so far and return it."""
@@ -113,8 +115,10 @@ def _run_and_save(session: Session, state: Any, done: int) -> tuple[Any, int, li
         session.tensorboard.write_rows(rows)
     if session.before_checkpoint is not None:
         session.before_checkpoint(done)
-    session.checkpoints.save(done, state, {**session.meta, "update": done, "env_steps": log.env_steps,
-                                           "wall_time_s": log.wall_time_s})
+    extra = session.checkpoint_meta() if session.checkpoint_meta is not None else {}
+    meta = {**session.meta, **extra, "update": done, "env_steps": log.env_steps,
+            "wall_time_s": log.wall_time_s}
+    session.checkpoints.save(done, state, meta)
     session.write_summary()
     return state, done, rows
 
