@@ -6,8 +6,8 @@
 Each RUN is a train-foam run directory; the runs should differ only in ``--pool`` (and ``--num-envs``,
 which follows it). For each run, over its first ``--episodes`` episodes: left, the moving mean of the
 SIMPLE iterations over the last 100 episodes against the episode (the paper's curve); right, the same
-against the training wall time (each episode is placed at the end of the update it ended in, from
-metrics.jsonl). Writes ``--out``/fig_foam_pools.png and fig_foam_pools.json (per run: pool, envs, wall
+against the training wall time at the end of each update (from metrics.jsonl), one point per
+update. Writes ``--out``/fig_foam_pools.png and fig_foam_pools.json (per run: pool, envs, wall
 time to the episode budget, episodes per hour, the final moving mean, the machine's load when it ran).
 """
 
@@ -63,7 +63,8 @@ def plot(curves: Sequence[dict[str, Any]], path: Path) -> None:
         label = f"pool {curve['pool']} ({curve['num_envs']} envs)"
         episode = np.arange(1, curve["episodes"] + 1)
         by_episode.plot(episode, curve["moving"], label=label)
-        by_time.plot(curve["wall_s"] / 60, curve["moving"], label=label)
+        ends = np.flatnonzero(np.diff(curve["wall_s"], append=np.inf) != 0)  # an update's last episode
+        by_time.plot(curve["wall_s"][ends] / 60, curve["moving"][ends], ".-", label=label)
     by_episode.set(xlabel="episode", ylabel=f"SIMPLE iterations, mean of the last {MOVING_WINDOW} episodes")
     by_time.set(xlabel="training wall time (min)")
     for ax in (by_episode, by_time):
