@@ -102,8 +102,9 @@ class FoamEnvConfig:
             (default U_REF**2 = 44.2**2, so the state is O(1)).
         reward: the cost whose increase is the negative reward of a step, one of REWARDS:
             "iterations" (default, the paper's: SIMPLE iterations K), "linear-iterations" (the inner
-            iterations of every linear solve, all fields: a SIMPLE iteration with a high alpha_p can
-            cost more pressure-solver iterations than one with a low alpha_p) or "solver-time" (the
+            iterations of every linear solve, all fields: what one SIMPLE iteration costs changes with
+            the factors, e.g. 10.8-11.3 near (0.95, 0.9) and 8.6-10.2 with random factors on the full
+            mesh) or "solver-time" (the
             solver's ExecutionTime, CPU seconds: it does not count the pauses between steps nor a
             busy pool's waiting, but it varies from run to run, so a run with it is not bit-
             reproducible). Every episode record holds all three costs whatever the reward.
