@@ -97,6 +97,21 @@ def test_check_factors_and_grid_config_cover_the_grid():
     assert cfg.action_low == (0.1, 0.2) and cfg.action_high == (0.95, 1.0)
 
 
+
+@pytest.mark.parametrize(("extra", "height"), [((), 0.0127), (("--step-height", "0.0254"), 0.0254)])
+def test_step_height_reaches_the_grids_config(extra, height):
+    from jaxsimrl.cli.foam import _config
+    from jaxsimrl.cli.main import build_parser
+
+    args = build_parser().parse_args(["grid-foam", *GOOD, *extra, "--out", "x"])
+    assert _config(args).step_height == height
+
+
+def test_bad_step_height_is_one_line_and_exit_2(capsys, tmp_path):
+    code, err, _ = run_cli(capsys, *GOOD, "--step-height", "-1", "--out", str(tmp_path / "out"))
+    assert code == 2 and err.count("\n") == 1 and "--step-height" in err
+
+
 CELLS = [
     GridCell(0.5, 0.5, 834, "converged", 1.0),
     GridCell(0.5, 0.9, 1053, "converged", 1.5),

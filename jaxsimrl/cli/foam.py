@@ -39,7 +39,7 @@ def k_omega_factor(text: str) -> float | str:
 
 def register(subparsers: Any) -> None:
     """Add the ``grid-foam`` subcommand."""
-    from foam_bridge.config import BUILTIN_RELAX_K_OMEGA, FOLLOW_ALPHA_U, MESH_SCALE_USABLE_MIN
+    from foam_bridge.config import BUILTIN_RELAX_K_OMEGA, FOLLOW_ALPHA_U, MESH_SCALE_USABLE_MIN, STEP_HEIGHT_H
 
     parser = subparsers.add_parser(
         "grid-foam",
@@ -55,6 +55,9 @@ def register(subparsers: Any) -> None:
                         help=f"mesh resolution factor (1.0 = 20,540 cells; default 1.0). Use >= "
                         f"{MESH_SCALE_USABLE_MIN:g}: coarser meshes diverge with the factors that are best "
                         "on the full mesh, a different control problem")
+    parser.add_argument("--step-height", type=positive_float, default=STEP_HEIGHT_H, metavar="M",
+                        help=f"step height in m of the built-in case (default {STEP_HEIGHT_H:g} = h; "
+                        f"{2 * STEP_HEIGHT_H:g} = 2h, the paper's second test geometry)")
     parser.add_argument("--pool", type=positive_int, default=1, help="worker processes (default 1)")
     parser.add_argument("--simple-variant", choices=("SIMPLE", "SIMPLEC"), default=None,
                         help="pressure-velocity coupling (default: SIMPLEC, the paper's code's)")
@@ -75,7 +78,8 @@ def _config(args: argparse.Namespace) -> Any:
     from foam_bridge.config import TEST_CONVERGENCE, TRAIN_CONVERGENCE, FoamEnvConfig
 
     convergence = TRAIN_CONVERGENCE if args.criterion == "train" else TEST_CONVERGENCE
-    cfg = FoamEnvConfig(mesh_scale=args.mesh_scale, simple_variant=args.simple_variant,
+    cfg = FoamEnvConfig(mesh_scale=args.mesh_scale, step_height=args.step_height,
+                        simple_variant=args.simple_variant,
                         inlet_velocity=args.inlet_velocity, max_iterations=args.max_iterations,
                         relax_k_omega=args.relax_k_omega, convergence=dict(convergence))
     try:
