@@ -246,6 +246,10 @@ def test_an_episode_keeps_its_uid_whatever_else_the_command_evaluates():
     by_name = {(j.controller, j.geometry, j.velocity, j.sample): j.uid for j in large}
     assert all(by_name[(j.controller, j.geometry, j.velocity, j.sample)] == j.uid for j in small)
     assert len(set(by_name.values())) == len(large)
+    chosen = {c: repeats[c] for c in ("random", "best_constant")}  # a subset, in CONTROLLERS order
+    subset = plan(["h"], [50.0], chosen, 2)
+    assert [j.controller for j in subset] == ["best_constant", "random", "random"]
+    assert all(by_name[(j.controller, j.geometry, j.velocity, j.sample)] == j.uid for j in subset)
 
 
 # ----- CLI errors --------------------------------------------------------------------------------------
@@ -258,7 +262,8 @@ def _grid_csv(path, cells):
 BAD_INPUT = {"no_config": "not a run directory", "lorenz": "not a train-foam run",
              "no_checkpoint": "no checkpoint", "velocity": "positive", "bad_csv": "not a grid-foam grid.csv",
              "no_csv": "cannot read", "twice": "must be distinct",
-             "unconverged_csv": "no converged cell", "wrong_obs": "observations of size 1"}
+             "unconverged_csv": "no converged cell", "wrong_obs": "observations of size 1",
+             "controller": "invalid choice"}
 
 
 @pytest.mark.parametrize("case", list(BAD_INPUT))
@@ -280,6 +285,8 @@ def test_bad_input_is_one_line_exit_2(capsys, tmp_path, saved_run, case):
     elif case == "bad_csv":
         (tmp_path / "g.csv").write_text("a,b\n1,2\n")
         extra = ["--baseline-grid", tmp_path / "g.csv"]
+    elif case == "controller":
+        extra = ["--controllers", "random", "oracle"]
     elif case == "no_csv":
         extra = ["--baseline-grid", tmp_path / "missing.csv"]
     elif case == "unconverged_csv":
@@ -327,8 +334,9 @@ def evaluation(saved_run, tmp_path_factory):
 def test_eval_writes_its_files_and_one_run_per_deterministic_cell(evaluation):
     out, report = evaluation
     assert sorted(p.name for p in out.iterdir()) == ["baseline_grid.csv", "baseline_grid.png", "box_V50.png",
-                                                      "eval.csv", "eval.json", "factors.png", "mean_V50.png"]
-    for name in ("box_V50.png", "mean_V50.png", "factors.png", "baseline_grid.png"):
+                                                      "eval.csv", "eval.json", "factors.png", "mean_V50.png",
+                                                      "velocities.png"]
+    for name in ("box_V50.png", "mean_V50.png", "factors.png", "baseline_grid.png", "velocities.png"):
         assert (out / name).read_bytes()[:8] == PNG_MAGIC
     assert report["geometries"] == {"h": 0.0127} and report["criterion"] == dict(TEST_CONVERGENCE)
     assert report["case"]["simple_variant"] == "SIMPLEC" and report["case"]["relax_k_omega"] == 0.8
@@ -390,3 +398,72 @@ def test_best_constant_is_the_grids_best_and_matches_the_env_run_directly(evalua
     assert info["outcome"] == run["outcome"] == "converged"
     assert run["iterations"] == info["iterations"]
     assert run["linear_iterations"] == cost.total and run["p_linear_iterations"] == cost.of("p")
+
+
+def _run_directly(cfg, uid, factors, case_copy):
+    """One episode with constant factors on FoamCaseEnv itself; returns its record and final U field."""
+    import shutil
+
+    from foam_bridge.env import FoamCaseEnv
+    from foam_bridge.fields import final_field
+
+    with FoamCaseEnv(dataclasses.replace(cfg, keep_cases=True), work_dir=case_copy.parent / "work") as env:
+        env.reset(seed=uid, options={"inlet_velocity": VELOCITY})
+        done = False
+        while not done:
+            _, _, terminated, truncated, info = env.step(factors)
+            done = terminated or truncated
+        shutil.copytree(env.case_dir, case_copy, ignore=shutil.ignore_patterns("foamBridge"))
+    return info, final_field(case_copy, "U")
+
+
+@needs_openfoam
+def test_a_subset_of_controllers_runs_only_those_and_the_same_episodes(evaluation, saved_run, tmp_path):
+    from foam_bridge.fields import relative_l2
+    from jaxsimrl.evaluation.foam_eval import NEVER_CONVERGED, REFERENCE, episode_uid
+
+    full_out, full = evaluation
+    out = tmp_path / "subset"
+    code = main(["eval-foam", str(saved_run), "--velocities", str(VELOCITY), "--step-height", "0.0127",
+                 "--mesh-scale", "0.4", "--samples", "2", "--pool", "2", "--out", str(out),
+                 "--controllers", "tutorial_defaults", "learned_deterministic",
+                 "--reference-iterations", "600"])
+    assert code == 0
+    report = json.loads((out / "eval.json").read_text())
+    # no best constant asked for: no grid is run, and the report says there is no baseline
+    assert "baseline_grid.csv" not in {p.name for p in out.iterdir()} and report["baseline"] is None
+    assert list(report["results"]) == list(report["controllers"]) == ["learned_deterministic",
+                                                                         "tutorial_defaults"]
+    for controller in report["results"]:
+        (run,) = report["results"][controller]["h"]["50"]["runs"]
+        (same,) = full["results"][controller]["h"]["50"]["runs"]
+        assert (run["iterations"], run["outcome"], run["actions"]) == (
+            same["iterations"], same["outcome"], same["actions"])
+        assert same["u_error"] is None  # the full evaluation had no reference
+
+    # the reference: the defaults (no best constant) for exactly 600 iterations, no convergence test
+    reference = report["reference"]
+    assert reference["iterations"] == 600 and reference["factors"] == [0.9, 0.8]
+    ref_run = reference["runs"]["h"]["50"]
+    assert (ref_run["outcome"], ref_run["iterations"], ref_run["has_field"]) == ("truncated", 600, True)
+
+    # every run's U error is the distance of its final field from the reference's, computed here again
+    # from FoamCaseEnv runs of the same episodes
+    cfg = dataclasses.replace(TRAIN_FOAM, convergence=dict(TEST_CONVERGENCE))
+    long_cfg = dataclasses.replace(cfg, max_iterations=600,
+                                   convergence={f: NEVER_CONVERGED for f in cfg.convergence})
+    info, ref_field = _run_directly(long_cfg, episode_uid(REFERENCE, "h", VELOCITY, 0), (0.9, 0.8),
+                                    tmp_path / "ref")
+    assert info["iterations"] == 600
+    run = report["results"]["tutorial_defaults"]["h"]["50"]["runs"][0]
+    info, field = _run_directly(cfg, episode_uid("tutorial_defaults", "h", VELOCITY, 0), (0.9, 0.8),
+                                tmp_path / "defaults")
+    assert info["iterations"] == run["iterations"]
+    assert run["u_error"] == pytest.approx(relative_l2(field[1], ref_field[1]), rel=1e-9)
+    assert 0 < run["u_error"] < 1
+    cell = report["results"]["learned_deterministic"]["h"]["50"]
+    assert cell["u_error"]["n"] == cell["converged"] and cell["runs"][0]["u_error"] > 0
+    with open(out / "eval.csv", newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    assert [float(r["u_error"]) for r in rows] == pytest.approx(
+        [cell["runs"][0]["u_error"], run["u_error"]])

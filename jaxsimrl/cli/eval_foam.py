@@ -20,6 +20,7 @@ from jaxsimrl.cli.errors import fail, positive_float, positive_int, seed_type
 def register(subparsers: Any) -> None:
     """Add the ``eval-foam`` subcommand."""
     from jaxsimrl.cli.foam import relaxation_factor
+    from jaxsimrl.evaluation.foam_eval import CONTROLLERS
 
     parser = subparsers.add_parser(
         "eval-foam", help="evaluate a train-foam policy against constant, default and random factors",
@@ -50,6 +51,11 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--seed", type=seed_type(), default=0,
                         help="seeds the sampled and random actions (default 0): the same command gives the "
                         "same numbers")
+    parser.add_argument("--controllers", nargs="+", choices=CONTROLLERS, default=list(CONTROLLERS),
+                        metavar="NAME", help=f"the controllers to run (default all: {' '.join(CONTROLLERS)})")
+    parser.add_argument("--reference-iterations", type=positive_int, metavar="N",
+                        help="first run the best constant (else the defaults) for N iterations per geometry "
+                        "and velocity, and report each run's U error against it (default: no reference)")
     parser.add_argument("--out", metavar="DIR", type=Path, help="output directory (default RUN_DIR/eval)")
     parser.set_defaults(func=run_eval_foam)
 
@@ -72,7 +78,8 @@ def run_eval_foam(args: argparse.Namespace) -> int:
                     step_heights=None if args.step_height is None else tuple(args.step_height),
                     mesh_scale=args.mesh_scale, samples=args.samples, pool=args.pool, seed=args.seed,
                     baseline_grid=args.baseline_grid, grid_alpha_u=tuple(args.grid_alpha_u),
-                    grid_alpha_p=tuple(args.grid_alpha_p), out=args.out)
+                    grid_alpha_p=tuple(args.grid_alpha_p), out=args.out,
+                    controllers=tuple(args.controllers), reference_iterations=args.reference_iterations)
     _check_openfoam()
     with EvalProgress() as progress:
         try:
@@ -138,16 +145,19 @@ def results_table(report: dict[str, Any]) -> Any:
     from rich.table import Table
 
     table = Table(title="eval-foam: mean +- std over the converged runs", box=box.SIMPLE_HEAD, padding=(0, 1))
-    for column in ("geom", "V", "controller", "conv.", "SIMPLE its", "wall s", "CPU s", "linear its"):
+    with_error = report.get("reference") is not None
+    columns = ("geom", "V", "controller", "conv.", "SIMPLE its", "wall s", "CPU s", "linear its")
+    for column in columns + (("U error",) if with_error else ()):
         table.add_column(column, justify="left" if column in ("geom", "controller") else "right")
     for geometry in report["geometries"]:
         for velocity in report["velocities"]:
             for controller, cells in report["results"].items():
                 cell = cells[geometry][f"{velocity:g}"]
                 converged = f"{cell['converged']}/{len(cell['runs'])}"
-                table.add_row(geometry, f"{velocity:g}", SHORT_NAMES.get(controller, controller), converged,
-                              _pm(cell["iterations"], 0), _pm(cell["wall_time_s"], 1),
-                              _pm(cell["cpu_time_s"], 1), _pm(cell["linear_iterations"], 0))
+                row = [geometry, f"{velocity:g}", SHORT_NAMES.get(controller, controller), converged,
+                       _pm(cell["iterations"], 0), _pm(cell["wall_time_s"], 1), _pm(cell["cpu_time_s"], 1),
+                       _pm(cell["linear_iterations"], 0)]
+                table.add_row(*row, *((_pm(cell["u_error"], 3),) if with_error else ()))
     return table
 
 

@@ -15,6 +15,11 @@ Controllers, all in the same run (see foam_controllers):
 - ``tutorial_defaults``: the tutorial's (U 0.9, p 0.8; k/omega as the training case sets them); one run;
 - ``random``: factors uniform in the action box at every step, ``samples`` runs (the paper's baseline).
 
+With ``reference_iterations`` N, every (geometry, velocity) first gets a reference run: the best
+constant (the tutorial's defaults without one) for exactly N iterations, with no convergence test.
+Every run then reports ``u_error``, the relative L2 distance of the U field it ended with from that
+reference (foam_bridge.fields says why iterations alone can mislead).
+
 Every episode's uid is a hash of (controller, geometry, velocity, sample); it seeds the episode's
 random actions, so the same command gives the same numbers, and an episode stays the same when other
 velocities, geometries or samples are added to the command. :func:`evaluate_foam` writes
@@ -59,7 +64,11 @@ CONTROLLERS = ("learned_deterministic", "learned_stochastic", "best_constant", "
 CASE_OMITTED = ("work_dir", "keep_cases", "step_height", "inlet_velocity", "action_low", "action_high")
 CSV_COLUMNS = ("controller", "geometry", "step_height", "velocity", "sample", "outcome", "cause",
                "iterations", "wall_time_s", "cpu_time_s", "linear_iterations", "p_linear_iterations",
-               "steps", "actions")
+               "u_error", "steps", "actions")
+#: Controller name of the reference runs (not a controller of the protocol: no row in the tables).
+REFERENCE = "reference"
+#: Convergence threshold of a reference run: never met, so it runs to its iteration count.
+NEVER_CONVERGED = 1e-30
 
 
 @dataclass(frozen=True)
@@ -77,6 +86,8 @@ class EvalSpec:
     grid_alpha_u: tuple[float, ...] = DEFAULT_GRID
     grid_alpha_p: tuple[float, ...] = DEFAULT_GRID
     out: Path | None = None
+    controllers: tuple[str, ...] = CONTROLLERS
+    reference_iterations: int | None = None
 
     def validate(self) -> EvalSpec:
         """One-line ValueError naming the first bad field; returns self."""
@@ -86,8 +97,15 @@ class EvalSpec:
             _distinct("step_heights", [geometry_name(h) for h in self.step_heights])
         _distinct("velocities", [f"{v:g}" for v in self.velocities])
         _positive("mesh_scale", (self.mesh_scale,))
-        for name in ("samples", "pool"):
+        unknown = [c for c in self.controllers if c not in CONTROLLERS]
+        if not self.controllers or unknown:
+            raise ValueError(f"controllers must be some of {', '.join(CONTROLLERS)}, got "
+                             f"{list(self.controllers)}")
+        _distinct("controllers", self.controllers)
+        for name in ("samples", "pool", "reference_iterations"):
             value = getattr(self, name)
+            if name == "reference_iterations" and value is None:
+                continue
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
         for name in ("grid_alpha_u", "grid_alpha_p"):
@@ -209,11 +227,12 @@ def episode_uid(controller: str, geometry: str, velocity: float, sample: int) ->
 
 def plan(names: Sequence[str], velocities: Sequence[float], repeats: dict[str, bool],
          samples: int) -> list[Job]:
-    """Every episode of the evaluation, geometry by geometry, velocity by velocity."""
+    """Every episode of the evaluation, geometry by geometry, velocity by velocity, for the controllers
+    of ``repeats`` (in CONTROLLERS order)."""
     jobs: list[Job] = []
     for geometry in names:
         for velocity in velocities:
-            for controller in CONTROLLERS:
+            for controller in (c for c in CONTROLLERS if c in repeats):
                 for sample in range(samples if repeats[controller] else 1):
                     uid = episode_uid(controller, geometry, velocity, sample)
                     jobs.append(Job(uid, controller, geometry, float(velocity), sample))
@@ -222,19 +241,26 @@ def plan(names: Sequence[str], velocities: Sequence[float], repeats: dict[str, b
     return jobs
 
 
-def make_controllers(run: Any, baseline: Baseline, pool: int, seed: int) -> dict[str, Any]:
-    """The five controllers of the protocol, keyed by CONTROLLERS."""
+def make_controllers(run: Any, baseline: Baseline | None, pool: int, seed: int,
+                     names: Sequence[str] = CONTROLLERS) -> dict[str, Any]:
+    """The controllers ``names`` of the protocol (CONTROLLERS; "best_constant" needs a baseline)."""
     from jaxsimrl.evaluation.foam_controllers import ConstantController, LearnedController, RandomController
     from jaxsimrl.evaluation.foam_policy import PolicyActor
 
     actor = PolicyActor(run, pool)
-    return {
-        "learned_deterministic": LearnedController("learned_deterministic", actor, True, seed),
-        "learned_stochastic": LearnedController("learned_stochastic", actor, False, seed),
-        "best_constant": ConstantController("best_constant", baseline.factors),
-        "tutorial_defaults": ConstantController("tutorial_defaults", TUTORIAL_DEFAULTS),
-        "random": RandomController("random", run.foam.action_low, run.foam.action_high, seed),
+    makers = {
+        "learned_deterministic": lambda: LearnedController("learned_deterministic", actor, True, seed),
+        "learned_stochastic": lambda: LearnedController("learned_stochastic", actor, False, seed),
+        "best_constant": lambda: ConstantController("best_constant", baseline.factors),
+        "tutorial_defaults": lambda: ConstantController("tutorial_defaults", TUTORIAL_DEFAULTS),
+        "random": lambda: RandomController("random", run.foam.action_low, run.foam.action_high, seed),
     }
+    return {name: makers[name]() for name in names}
+
+
+def constant_factors(baseline: Baseline | None) -> list[tuple[float, float]]:
+    """The constant controllers' factors (the env's action box must hold them)."""
+    return [TUTORIAL_DEFAULTS] if baseline is None else [baseline.factors, TUTORIAL_DEFAULTS]
 
 
 def evaluate_foam(spec: EvalSpec, on_result: Callable[[EpisodeResult, int, int], None] | None = None,
@@ -251,41 +277,104 @@ def evaluate_foam(spec: EvalSpec, on_result: Callable[[EpisodeResult, int, int],
     baseline = baseline_from_csv(spec.baseline_grid) if spec.baseline_grid is not None else None
     out = _make_output_dir(spec.output_dir)
     started = time.monotonic()
-    if baseline is None:
+    if baseline is None and "best_constant" in spec.controllers:
         first = next(iter(shapes))
         say(f"no --baseline-grid: searching the best constant on a grid at V = {spec.velocities[0]:g} m/s, "
             f"{first}")
         grid_cfg = eval_config(run.foam, shapes[first], spec.mesh_scale, [TUTORIAL_DEFAULTS])
         baseline = baseline_from_grid(spec, grid_cfg, spec.velocities[0], first, say)
-    say(f"best constant ({baseline.alpha_u:g}, {baseline.alpha_p:g}) from {baseline.source}")
-    controllers = make_controllers(run, baseline, spec.pool, spec.seed)
+    if baseline is not None:
+        say(f"best constant ({baseline.alpha_u:g}, {baseline.alpha_p:g}) from {baseline.source}")
+    controllers = make_controllers(run, baseline, spec.pool, spec.seed, spec.controllers)
     jobs = plan(list(shapes), spec.velocities, {k: c.repeats for k, c in controllers.items()}, spec.samples)
-    results = _run_plan(spec, run, shapes, jobs, controllers, baseline, on_result)
-    report = build_report(spec, run, baseline, shapes, results, time.monotonic() - started)
-    write_outputs(report, results, out)
+    results, references = _run_plan(spec, run, shapes, jobs, controllers, baseline, on_result)
+    report = build_report(spec, run, baseline, shapes, results, time.monotonic() - started, references)
+    write_outputs(report, results, out, references)
     return report
 
 
 def _run_plan(spec: EvalSpec, run: Any, shapes: dict[str, float | None], jobs: list[Job],
-              controllers: dict[str, Any], baseline: Baseline,
-              on_result: Callable[[EpisodeResult, int, int], None] | None) -> list[EpisodeResult]:
-    """Every job, one geometry (one case, one pool) after the other; results in plan order."""
+              controllers: dict[str, Any], baseline: Baseline | None,
+              on_result: Callable[[EpisodeResult, int, int], None] | None
+              ) -> tuple[list[EpisodeResult], References]:
+    """Every job, one geometry (one case, one pool) after the other, each geometry's reference runs
+    first (with ``spec.reference_iterations``); results in plan order."""
     from jaxsimrl.evaluation.foam_runner import run_episodes
 
     results: list[EpisodeResult] = []
-    done = 0
+    references = References(spec, baseline)
+    done, total = 0, len(jobs) + len(references.plan(shapes, spec.velocities))
 
     def progress(result: EpisodeResult) -> None:
         nonlocal done
         done += 1
         if on_result is not None:
-            on_result(result, done, len(jobs))
+            on_result(result, done, total)
 
     for name, height in shapes.items():
-        cfg = eval_config(run.foam, height, spec.mesh_scale, [baseline.factors, TUTORIAL_DEFAULTS])
+        cfg = eval_config(run.foam, height, spec.mesh_scale, constant_factors(baseline))
+        if references.wanted:
+            references.run(cfg, name, spec.velocities, spec.pool, progress)
         mine = [j for j in jobs if j.geometry == name]
-        results += run_episodes(cfg, mine, controllers, spec.pool, progress)
-    return results
+        done_here = run_episodes(cfg, mine, controllers, spec.pool, progress, fields=references.wanted)
+        results += [references.measure(r) for r in done_here]
+    return results, references
+
+
+class References:
+    """The reference runs of an evaluation (none without ``spec.reference_iterations``) and the error
+    of every run's final U field against its (geometry, velocity)'s reference."""
+
+    def __init__(self, spec: EvalSpec, baseline: Baseline | None) -> None:
+        self.iterations = spec.reference_iterations
+        self.factors = baseline.factors if baseline is not None else TUTORIAL_DEFAULTS
+        self.runs: dict[tuple[str, float], EpisodeResult] = {}
+        self.errors: dict[int, float | None] = {}
+
+    @property
+    def wanted(self) -> bool:
+        return self.iterations is not None
+
+    def plan(self, geometries: Sequence[str], velocities: Sequence[float]) -> list[Job]:
+        if not self.wanted:
+            return []
+        return [Job(episode_uid(REFERENCE, g, v, 0), REFERENCE, g, float(v), 0)
+                for g in geometries for v in velocities]
+
+    def run(self, cfg: FoamEnvConfig, geometry: str, velocities: Sequence[float], pool: int,
+            progress: Callable[[EpisodeResult], None]) -> None:
+        from jaxsimrl.evaluation.foam_controllers import ConstantController
+        from jaxsimrl.evaluation.foam_runner import run_episodes
+
+        long_run = dataclasses.replace(cfg, max_iterations=self.iterations,
+                                       convergence={f: NEVER_CONVERGED for f in cfg.convergence})
+        controller = {REFERENCE: ConstantController(REFERENCE, self.factors)}
+        for result in run_episodes(long_run, self.plan([geometry], velocities), controller, pool, progress,
+                                   fields=True):
+            self.runs[(geometry, result.job.velocity)] = result
+
+    def measure(self, result: EpisodeResult) -> EpisodeResult:
+        """Record the run's U error (None: no reference, or no final field); drop the field itself."""
+        from foam_bridge.fields import relative_l2
+
+        reference = self.runs.get((result.job.geometry, result.job.velocity))
+        self.errors[result.job.uid] = relative_l2(result.final_u, None if reference is None
+                                                  else reference.final_u)
+        return dataclasses.replace(result, final_u=None)
+
+    def summary(self) -> dict[str, Any] | None:
+        """eval.json's "reference": how the references were run and how far each one got."""
+        if not self.wanted:
+            return None
+        runs = {}
+        for (geometry, velocity), result in self.runs.items():
+            last = result.trace[-1].residuals if result.trace else {}
+            runs.setdefault(geometry, {})[f"{velocity:g}"] = {
+                "outcome": result.outcome, "cause": result.cause, "iterations": result.iterations,
+                "final_residuals": last, "has_field": result.final_u is not None}
+        return {"iterations": self.iterations, "factors": list(self.factors), "runs": runs,
+                "error": "relative L2 distance of a run's final U field from its reference's, all cells "
+                         "and components, cells unweighted"}
 
 
 def _make_output_dir(out: Path) -> Path:
@@ -299,7 +388,8 @@ def _make_output_dir(out: Path) -> Path:
 
 
 # ----- the report ------------------------------------------------------------------------------------
-def run_row(result: EpisodeResult, step_height: float | None) -> dict[str, Any]:
+def run_row(result: EpisodeResult, step_height: float | None, u_error: float | None = None
+            ) -> dict[str, Any]:
     """One run as a flat record (eval.csv's row; eval.json's per-run entry)."""
     cost = result.cost
     return {
@@ -309,7 +399,7 @@ def run_row(result: EpisodeResult, step_height: float | None) -> dict[str, Any]:
         "cpu_time_s": None if cost is None else cost.cpu_time_s,
         "linear_iterations": None if cost is None else cost.total,
         "p_linear_iterations": None if cost is None else cost.of("p"),
-        "steps": len(result.actions), "actions": result.actions,
+        "u_error": u_error, "steps": len(result.actions), "actions": result.actions,
     }
 
 
@@ -333,27 +423,40 @@ def cell_summary(rows: Sequence[dict[str, Any]], max_iterations: int) -> dict[st
     converged = [r for r in rows if r["outcome"] == "converged"]
     summary: dict[str, Any] = {"runs": list(rows), "outcomes": dict(Counter(r["outcome"] for r in rows)),
                                "converged": len(converged)}
-    for key in ("iterations", "wall_time_s", "cpu_time_s", "linear_iterations", "p_linear_iterations"):
+    for key in ("iterations", "wall_time_s", "cpu_time_s", "linear_iterations", "p_linear_iterations",
+                "u_error"):
         summary[key] = stats([r[key] for r in converged])
     summary["penalised_iterations"] = stats(
         [r["iterations"] if r["outcome"] == "converged" else max_iterations for r in rows])
     return summary
 
 
-def build_report(spec: EvalSpec, run: Any, baseline: Baseline, shapes: dict[str, float | None],
-                 results: Sequence[EpisodeResult], wall_time_s: float) -> dict[str, Any]:
+def build_report(spec: EvalSpec, run: Any, baseline: Baseline | None, shapes: dict[str, float | None],
+                 results: Sequence[EpisodeResult], wall_time_s: float,
+                 references: References | None = None) -> dict[str, Any]:
     """eval.json: the protocol, the baseline, and per controller -> geometry -> velocity the runs and
     their statistics."""
     from jaxsimrl.envs.foam_config import foam_config_to_json
 
-    table: dict[str, Any] = {c: {g: {} for g in shapes} for c in CONTROLLERS}
-    for controller in CONTROLLERS:
+    chosen = [c for c in CONTROLLERS if c in spec.controllers]
+    errors = {} if references is None else references.errors
+    table: dict[str, Any] = {c: {g: {} for g in shapes} for c in chosen}
+    for controller in chosen:
         for geometry, height in shapes.items():
             for velocity in spec.velocities:
-                rows = [run_row(r, height) for r in results if r.job.controller == controller
+                rows = [run_row(r, height, errors.get(r.job.uid)) for r in results
+                        if r.job.controller == controller
                         and r.job.geometry == geometry and r.job.velocity == float(velocity)]
                 table[controller][geometry][f"{velocity:g}"] = cell_summary(rows, run.foam.max_iterations)
-    case = eval_config(run.foam, None, spec.mesh_scale, [baseline.factors, TUTORIAL_DEFAULTS])
+    case = eval_config(run.foam, None, spec.mesh_scale, constant_factors(baseline))
+    described = {
+        "learned_deterministic": "the policy's mean action, one run per cell",
+        "learned_stochastic": f"actions sampled from the policy, {spec.samples} runs per cell",
+        "best_constant": None if baseline is None else
+        f"constant ({baseline.alpha_u:g}, {baseline.alpha_p:g}), one run per cell",
+        "tutorial_defaults": f"constant {TUTORIAL_DEFAULTS} (U, p), k/omega as the case, one run per cell",
+        "random": f"uniform in the action box at every step, {spec.samples} runs per cell",
+    }
     return {
         "run_dir": str(run.path), "checkpoint_step": run.checkpoint_step, "checkpoint_update": run.update,
         "seed": spec.seed, "samples": spec.samples, "pool": spec.pool,
@@ -361,29 +464,27 @@ def build_report(spec: EvalSpec, run: Any, baseline: Baseline, shapes: dict[str,
         "mesh_scale": spec.mesh_scale, "criterion": dict(TEST_CONVERGENCE),
         "case": {k: v for k, v in foam_config_to_json(case).items()
                  if k not in CASE_OMITTED},
-        "controllers": {
-            "learned_deterministic": "the policy's mean action, one run per cell",
-            "learned_stochastic": f"actions sampled from the policy, {spec.samples} runs per cell",
-            "best_constant": f"constant ({baseline.alpha_u:g}, {baseline.alpha_p:g}), one run per cell",
-            "tutorial_defaults": f"constant {TUTORIAL_DEFAULTS} (U, p), k/omega as the case, one run per "
-                                 f"cell",
-            "random": f"uniform in the action box at every step, {spec.samples} runs per cell",
-        },
+        "controllers": {c: described[c] for c in chosen},
         "action_box": {"low": list(run.foam.action_low), "high": list(run.foam.action_high)},
-        "baseline": {"alpha_u": baseline.alpha_u, "alpha_p": baseline.alpha_p, "source": baseline.source,
-                     "grid_iterations": baseline.grid_iterations},
+        "baseline": None if baseline is None else {
+            "alpha_u": baseline.alpha_u, "alpha_p": baseline.alpha_p, "source": baseline.source,
+            "grid_iterations": baseline.grid_iterations},
+        "reference": None if references is None else references.summary(),
         "results": table,
         "wall_time_s": wall_time_s,
     }
 
 
-def write_outputs(report: dict[str, Any], results: Sequence[EpisodeResult], out: Path) -> None:
+def write_outputs(report: dict[str, Any], results: Sequence[EpisodeResult], out: Path,
+                  references: References | None = None) -> None:
     """eval.json, eval.csv and the figures, each written atomically."""
     from jaxsimrl.evaluation import foam_plots
 
     atomic_write_json(out / EVAL_JSON, report)
     heights = report["geometries"]
-    atomic_write_text(out / EVAL_CSV, _csv([run_row(r, heights[r.job.geometry]) for r in results]))
+    errors = {} if references is None else references.errors
+    rows = [run_row(r, heights[r.job.geometry], errors.get(r.job.uid)) for r in results]
+    atomic_write_text(out / EVAL_CSV, _csv(rows))
     foam_plots.plot_all(report, out)
 
 

@@ -4,11 +4,14 @@
   one panel per geometry; every run is also drawn as a dot, and runs that did not converge are counted
   above their controller.
 - ``mean_V<v>.png`` per velocity: mean +- std per controller of the costs of the converged runs
-  (rows: SIMPLE iterations, wall time, solver CPU time, linear-solver iterations), one column per
-  geometry.
+  (rows: SIMPLE iterations, wall time, solver CPU time, linear-solver iterations, and with reference
+  runs the U error), one column per geometry.
 - ``factors.png``: the learned policy's relaxation factors alpha_u and alpha_p against the SIMPLE
   iteration (each action holds for ``interval`` iterations), per geometry and velocity: the
   deterministic run bold, the stochastic samples thin; the best constant dashed.
+- ``velocities.png``: SIMPLE iterations against the inlet velocity per controller (the mean of the
+  converged runs as a line, every converged run as a dot), one panel per geometry: with many
+  velocities it shows how rugged the landscape is between the protocol's three.
 """
 
 from __future__ import annotations
@@ -34,6 +37,8 @@ PALETTE = ("tab:blue", "tab:orange", "tab:purple", "tab:brown", "tab:pink", "tab
 #: (key in a cell summary, axis label) of the mean +- std figure's rows.
 COSTS = (("iterations", "SIMPLE iterations"), ("wall_time_s", "wall time (s)"),
          ("cpu_time_s", "solver CPU time (s)"), ("linear_iterations", "linear-solver iterations"))
+#: The extra row with reference runs (eval-foam --reference-iterations).
+U_ERROR = ("u_error", "U error vs reference")
 
 
 def plot_all(report: dict[str, Any], out: Path) -> list[Path]:
@@ -43,6 +48,7 @@ def plot_all(report: dict[str, Any], out: Path) -> list[Path]:
         paths.append(plot_boxes(report, velocity, out / f"box_V{velocity:g}.png"))
         paths.append(plot_means(report, velocity, out / f"mean_V{velocity:g}.png"))
     paths.append(plot_factors(report, out / "factors.png"))
+    paths.append(plot_velocities(report, out / "velocities.png"))
     return paths
 
 
@@ -95,11 +101,12 @@ def plot_boxes(report: dict[str, Any], velocity: float, path: Path) -> Path:
 def plot_means(report: dict[str, Any], velocity: float, path: Path) -> Path:
     """Mean +- std of every cost per controller at one velocity (converged runs)."""
     shapes = list(report["geometries"])
-    fig, axes = _figure(len(COSTS), len(shapes), 6.0, 2.8)
+    costs = COSTS + ((U_ERROR,) if report.get("reference") is not None else ())
+    fig, axes = _figure(len(costs), len(shapes), 6.0, 2.8)
     for column, geometry in enumerate(shapes):
         cells = _cells(report, geometry, velocity)
         names = list(cells)
-        for row, (key, label) in enumerate(COSTS):
+        for row, (key, label) in enumerate(costs):
             ax = axes[row, column]
             means = [cells[n][key]["mean"] for n in names]
             heights = [np.nan if m is None else m for m in means]
@@ -110,12 +117,34 @@ def plot_means(report: dict[str, Any], velocity: float, path: Path) -> Path:
                 if done < runs:
                     ax.annotate(f"{done}/{runs} conv.", (x, 0.98), xycoords=("data", "axes fraction"),
                                 ha="center", va="top", fontsize=7, color="tab:red")
-            ax.set_xticks(range(len(names)), [LABELS.get(n, n) for n in names] if row == len(COSTS) - 1
+            ax.set_xticks(range(len(names)), [LABELS.get(n, n) for n in names] if row == len(costs) - 1
                           else [""] * len(names), fontsize=8)
             ax.set_ylabel(label, fontsize=9)
             ax.grid(axis="y", alpha=0.3)
             if row == 0:
                 ax.set_title(f"{geometry}, V = {velocity:g} m/s (mean +- std of converged runs)", fontsize=10)
+    return _save(fig, path)
+
+
+def plot_velocities(report: dict[str, Any], path: Path) -> Path:
+    """SIMPLE iterations against the inlet velocity, per controller and geometry (converged runs)."""
+    shapes = list(report["geometries"])
+    velocities = report["velocities"]
+    fig, axes = _figure(1, len(shapes), 6.5, 4.2)
+    for ax, geometry in zip(axes[0], shapes, strict=True):
+        for name, by_velocity in report["results"].items():
+            cells = [by_velocity[geometry][f"{v:g}"] for v in velocities]
+            means = [np.nan if c["iterations"]["mean"] is None else c["iterations"]["mean"] for c in cells]
+            ax.plot(velocities, means, "-", color=COLOURS[name], lw=1.5,
+                    label=LABELS.get(name, name).replace("\n", " "))
+            for velocity, cell in zip(velocities, cells, strict=True):
+                done = [r["iterations"] for r in cell["runs"] if r["outcome"] == "converged"]
+                ax.scatter([velocity] * len(done), done, s=10, color=COLOURS[name], zorder=3)
+        ax.set_xlabel("inlet velocity (m/s)")
+        ax.set_ylabel("SIMPLE iterations to convergence")
+        ax.set_title(f"{geometry}: iterations against the inlet velocity", fontsize=10)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
     return _save(fig, path)
 
 
@@ -142,13 +171,14 @@ def plot_factors(report: dict[str, Any], path: Path) -> Path:
             for name, width, alpha in LEARNED_STYLE:
                 label = f"V = {velocity:g} m/s" if name == "learned_deterministic" else None
                 style = {"color": colour, "lw": width, "alpha": alpha}
-                for run in cells[name]["runs"]:
+                for run in cells.get(name, {"runs": []})["runs"]:
                     _draw_factors(axes[:, column], run, interval, style, label)
         baseline = report["baseline"]
         for row, (symbol, key) in enumerate(((r"$\alpha_u$", "alpha_u"), (r"$\alpha_p$", "alpha_p"))):
             ax = axes[row, column]
-            ax.axhline(baseline[key], color="tab:green", ls="--", lw=1,
-                       label="best constant" if row == 0 else None)
+            if baseline is not None:
+                ax.axhline(baseline[key], color="tab:green", ls="--", lw=1,
+                           label="best constant" if row == 0 else None)
             ax.set_ylabel(symbol)
             ax.set_ylim(*_factor_limits(report, key))
             ax.set_xlabel("SIMPLE iteration")
@@ -163,8 +193,10 @@ def _factor_limits(report: dict[str, Any], key: str) -> tuple[float, float]:
     """The training action box of one factor (and the best constant), with a margin."""
     index = ("alpha_u", "alpha_p").index(key)
     box = report["action_box"]
-    low = min(box["low"][index], report["baseline"][key])
-    high = max(box["high"][index], report["baseline"][key])
+    baseline = report["baseline"]
+    low, high = box["low"][index], box["high"][index]
+    if baseline is not None:
+        low, high = min(low, baseline[key]), max(high, baseline[key])
     return low - 0.03, high + 0.03
 
 

@@ -34,6 +34,7 @@ import numpy as np
 
 from foam_bridge.backends import BAD_INPUT_ERRORS, WORKER_DIED, Reply, Request, env_dir, make_backend
 from foam_bridge.config import FoamEnvConfig, work_root
+from foam_bridge.fields import final_field
 from jaxsimrl.evaluation.foam_cost import SolverCost, read_solver_cost
 
 #: The sub-directory of an env directory that holds the running episode's case (FoamCaseEnv's layout).
@@ -71,7 +72,9 @@ class EpisodeResult:
 
     ``wall_time_s``: seconds the episode took on its worker, less the time its paused solver waited
     for the rest of the batch (FoamCaseEnv's ``solver_idle_s``); ``cost``: linear-solver iterations and
-    the solver's CPU seconds from its log (None if the log could not be read); ``trace``: every step.
+    the solver's CPU seconds from its log (None if the log could not be read); ``trace``: every step;
+    ``final_u``: the U field the run ended with (only with ``run_episodes(..., fields=True)``; None
+    if none was written).
     """
 
     job: Job
@@ -82,6 +85,7 @@ class EpisodeResult:
     actions: list[list[float]]
     cost: SolverCost | None
     trace: tuple[StepRecord, ...] = ()
+    final_u: np.ndarray | None = None
 
 
 @dataclass
@@ -96,8 +100,10 @@ class _Running:
 
 
 def run_episodes(cfg: FoamEnvConfig, jobs: Sequence[Job], controllers: Mapping[str, Any], pool: int,
-                 on_result: Callable[[EpisodeResult], None] | None = None) -> list[EpisodeResult]:
-    """Run every job on ``min(pool, len(jobs))`` workers with ``cfg``; results come back in job order."""
+                 on_result: Callable[[EpisodeResult], None] | None = None,
+                 fields: bool = False) -> list[EpisodeResult]:
+    """Run every job on ``min(pool, len(jobs))`` workers with ``cfg``; results come back in job order;
+    ``fields``: keep each run's final U field (``EpisodeResult.final_u``)."""
     if not jobs:
         return []
     slots = min(pool, len(jobs))
@@ -106,7 +112,8 @@ def run_episodes(cfg: FoamEnvConfig, jobs: Sequence[Job], controllers: Mapping[s
     try:
         backend = make_backend("local", cfg, slots, slots, root)
         try:
-            _Driver(backend, root, controllers, results, on_result or (lambda r: None)).run(jobs, slots)
+            driver = _Driver(backend, root, controllers, results, on_result or (lambda r: None), fields)
+            driver.run(jobs, slots)
         finally:
             backend.close()
     finally:
@@ -119,9 +126,9 @@ class _Driver:
     """Keeps every slot busy: reset where an episode ended, then step all running episodes together."""
 
     def __init__(self, backend: Any, root: Any, controllers: Mapping[str, Any], results: dict,
-                 on_result: Callable[[EpisodeResult], None]) -> None:
+                 on_result: Callable[[EpisodeResult], None], fields: bool = False) -> None:
         self.backend, self.root, self.controllers = backend, root, controllers
-        self.results, self.on_result = results, on_result
+        self.results, self.on_result, self.fields = results, on_result, fields
         self.active: dict[int, _Running] = {}
 
     def run(self, jobs: Sequence[Job], slots: int) -> None:
@@ -191,9 +198,11 @@ class _Driver:
         else:  # the worker could not report: what the driver saw
             wall, actions = time.monotonic() - running.started, running.actions
             iterations = running.iterations
-        cost = read_solver_cost(env_dir(self.root, slot) / EPISODE_DIR) if running.steps else None
+        case = env_dir(self.root, slot) / EPISODE_DIR
+        cost = read_solver_cost(case) if running.steps else None
+        final = final_field(case, "U") if self.fields and running.steps else None
         result = EpisodeResult(running.job, outcome, cause, iterations, wall, actions, cost,
-                               tuple(running.trace))
+                               tuple(running.trace), None if final is None else final[1])
         self.controllers[running.job.controller].end(running.job.uid)
         self.results[running.job.uid] = result
         self.on_result(result)
