@@ -32,16 +32,19 @@ def time_directories(case: Path) -> list[tuple[float, Path]]:
 
 def final_field(case: Path, name: str = "U") -> tuple[float, np.ndarray] | None:
     """``(time, internal field)`` of ``name`` at the case's latest time after its first, as a float
-    array (one row per cell); None when no later time was written (a run that crashed before its
-    write) or the field cannot be read or is uniform."""
+    array (one row per cell); ascii, binary or gzip-compressed (``name.gz``). None when no later time
+    was written (a run that crashed before its write) or the field cannot be read or is uniform."""
     from foamlib import FoamFieldFile
 
     times = time_directories(case)
-    if len(times) < 2 or not (times[-1][1] / name).is_file():
+    if len(times) < 2:
         return None
-    time, path = times[-1]
+    time, directory = times[-1]
+    written = [directory / f for f in (name, f"{name}.gz") if (directory / f).is_file()]  # writeCompression
+    if not written:
+        return None
     try:
-        values = np.asarray(FoamFieldFile(path / name).internal_field, dtype=np.float64)
+        values = np.asarray(FoamFieldFile(written[0]).internal_field, dtype=np.float64)
     except Exception:  # noqa: BLE001 - an unreadable field is "no field", not a crashed evaluation
         return None
     uniform = values.ndim == 0 or values.shape == (3,)  # foamlib gives a uniform field as its one value

@@ -213,3 +213,32 @@ def test_a_case_under_a_path_with_spaces_runs_and_a_work_dir_with_spaces_is_refu
     with pytest.raises(ValueError, match="contains whitespace") as raised:
         FoamCaseEnv(_cfg(tmp_path, "pitzDaily", work_dir=tmp_path / "work dir"))
     assert len(str(raised.value).splitlines()) == 1 and not (tmp_path / "work dir").exists()
+
+
+def test_the_final_field_of_a_tutorial_reads_alike_in_ascii_binary_and_compressed(tmp_path):
+    from foamlib import FoamFile
+
+    from foam_bridge.fields import final_field
+
+    with FoamCaseEnv(_cfg(tmp_path, "pitzDaily", max_iterations=100, keep_cases=True)) as env:
+        env.reset(seed=0)
+        _, info = _episode(env, (0.9, 0.9))
+        assert (info["outcome"], info["iterations"]) == ("truncated", 100)
+        written = final_field(env.case_dir, "U")
+        episode = env.case_dir
+        # the same fields rewritten by OpenFOAM's foamFormatConvert, in a clean copy of the tutorial
+        converted = {}
+        for write_format, compression, name in (("binary", "off", "U"), ("ascii", "on", "U.gz")):
+            copy = tmp_path / f"{write_format}_{compression}"
+            shutil.copytree(TUTORIALS / "pitzDaily", copy)
+            for part in ("100", "constant"):
+                shutil.copytree(episode / part, copy / part, dirs_exist_ok=True)
+            control = FoamFile(copy / "system" / "controlDict")
+            control["writeFormat"], control["writeCompression"] = write_format, compression
+            foam_case.run_application(env.openfoam, "foamFormatConvert", copy)
+            assert sorted(f.name for f in (copy / "100").glob("U*")) == [name]
+            converted[name] = final_field(copy, "U")
+    assert written is not None and written[0] == 100.0 and written[1].shape == (12225, 3)
+    for time, values in converted.values():
+        assert time == 100.0
+        np.testing.assert_allclose(values, written[1], rtol=1e-12, atol=0)  # the same, to the last ulp
