@@ -28,7 +28,8 @@ def register(subparsers: Any) -> None:
         "75 m/s, the test criterion, step heights h and 2h, the full mesh. Controllers: the learned policy "
         "(deterministic: one run per cell; stochastic: --samples runs), the best constant factors, the "
         "tutorial's defaults (U 0.9, p 0.8) and random factors (--samples runs). Every run reports SIMPLE "
-        "iterations, wall time and linear-solver iterations.")
+        "iterations, wall time and linear-solver iterations, and with --reference-iterations the error of "
+        "its final U field against a long reference run.")
     parser.add_argument("run_dir", metavar="RUN_DIR", help="a run directory written by train-foam")
     parser.add_argument("--velocities", type=positive_float, nargs="+", metavar="V",
                         default=[25.0, 50.0, 75.0], help="inlet velocities in m/s (default: 25 50 75)")
