@@ -102,10 +102,9 @@ class EvalSpec:
             raise ValueError(f"controllers must be some of {', '.join(CONTROLLERS)}, got "
                              f"{list(self.controllers)}")
         _distinct("controllers", self.controllers)
-        for name in ("samples", "pool", "reference_iterations"):
+        optional = ("reference_iterations",) if self.reference_iterations is not None else ()
+        for name in ("samples", "pool", *optional):
             value = getattr(self, name)
-            if name == "reference_iterations" and value is None:
-                continue
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
         for name in ("grid_alpha_u", "grid_alpha_p"):
@@ -288,8 +287,9 @@ def evaluate_foam(spec: EvalSpec, on_result: Callable[[EpisodeResult, int, int],
     controllers = make_controllers(run, baseline, spec.pool, spec.seed, spec.controllers)
     jobs = plan(list(shapes), spec.velocities, {k: c.repeats for k, c in controllers.items()}, spec.samples)
     results, references = _run_plan(spec, run, shapes, jobs, controllers, baseline, on_result)
-    report = build_report(spec, run, baseline, shapes, results, time.monotonic() - started, references)
-    write_outputs(report, results, out, references)
+    rows = [run_row(r, shapes[r.job.geometry], references.errors.get(r.job.uid)) for r in results]
+    report = build_report(spec, run, baseline, shapes, rows, time.monotonic() - started, references)
+    write_outputs(report, rows, out)
     return report
 
 
@@ -432,22 +432,20 @@ def cell_summary(rows: Sequence[dict[str, Any]], max_iterations: int) -> dict[st
 
 
 def build_report(spec: EvalSpec, run: Any, baseline: Baseline | None, shapes: dict[str, float | None],
-                 results: Sequence[EpisodeResult], wall_time_s: float,
+                 rows: Sequence[dict[str, Any]], wall_time_s: float,
                  references: References | None = None) -> dict[str, Any]:
-    """eval.json: the protocol, the baseline, and per controller -> geometry -> velocity the runs and
-    their statistics."""
+    """eval.json: the protocol, the baseline, and per controller -> geometry -> velocity the runs
+    (``rows``, as run_row makes them) and their statistics."""
     from jaxsimrl.envs.foam_config import foam_config_to_json
 
     chosen = [c for c in CONTROLLERS if c in spec.controllers]
-    errors = {} if references is None else references.errors
     table: dict[str, Any] = {c: {g: {} for g in shapes} for c in chosen}
     for controller in chosen:
-        for geometry, height in shapes.items():
+        for geometry in shapes:
             for velocity in spec.velocities:
-                rows = [run_row(r, height, errors.get(r.job.uid)) for r in results
-                        if r.job.controller == controller
-                        and r.job.geometry == geometry and r.job.velocity == float(velocity)]
-                table[controller][geometry][f"{velocity:g}"] = cell_summary(rows, run.foam.max_iterations)
+                cell = [r for r in rows if r["controller"] == controller and r["geometry"] == geometry
+                        and r["velocity"] == float(velocity)]
+                table[controller][geometry][f"{velocity:g}"] = cell_summary(cell, run.foam.max_iterations)
     case = eval_config(run.foam, None, spec.mesh_scale, constant_factors(baseline))
     described = {
         "learned_deterministic": "the policy's mean action, one run per cell",
@@ -475,15 +473,11 @@ def build_report(spec: EvalSpec, run: Any, baseline: Baseline | None, shapes: di
     }
 
 
-def write_outputs(report: dict[str, Any], results: Sequence[EpisodeResult], out: Path,
-                  references: References | None = None) -> None:
-    """eval.json, eval.csv and the figures, each written atomically."""
+def write_outputs(report: dict[str, Any], rows: Sequence[dict[str, Any]], out: Path) -> None:
+    """eval.json, eval.csv (``rows``, one per run) and the figures, each written atomically."""
     from jaxsimrl.evaluation import foam_plots
 
     atomic_write_json(out / EVAL_JSON, report)
-    heights = report["geometries"]
-    errors = {} if references is None else references.errors
-    rows = [run_row(r, heights[r.job.geometry], errors.get(r.job.uid)) for r in results]
     atomic_write_text(out / EVAL_CSV, _csv(rows))
     foam_plots.plot_all(report, out)
 
