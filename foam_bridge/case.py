@@ -62,7 +62,7 @@ import numpy as np
 from foamlib import FoamFile
 
 from foam_bridge import foamdict
-from foam_bridge.config import FOLLOW_ALPHA_U, STEP_HEIGHT_H, FoamEnvConfig
+from foam_bridge.config import FOLLOW_ALPHA_U, STEP_HEIGHT_H, FoamEnvConfig, without_convergence_test
 from foam_bridge.errors import CaseError
 from foam_bridge.openfoam import OpenFOAM
 
@@ -78,6 +78,8 @@ TUTORIAL_CELLS: Mapping[str, int] = {
 BRIDGE_DIR = "foamBridge"
 CONTROL_INCLUDE = f"{BRIDGE_DIR}/controlDict"
 SIMPLE_INCLUDE = f"{BRIDGE_DIR}/SIMPLE"
+#: Relaxation factors read at start-up from a regular file (a restart, a confirmation check): no pause.
+FIXED_RELAXATION = f"{BRIDGE_DIR}/relaxation.fixed"
 STATE_FIELD = "foamBridgeMagSqrU"
 CELLS_FUNCTION = "foamBridgeCells"
 INLET_FUNCTION = "foamBridgeInlet"
@@ -384,6 +386,42 @@ def make_uninterrupted(case: Path, cfg: FoamEnvConfig, alpha_u: float, alpha_p: 
     _write_control(case, cfg, pause=False, functions=functions)
 
 
+def write_restart(case: Path, base: Path, cfg: FoamEnvConfig, time: int, text: bytes) -> None:
+    """Make the episode case go on from the fields it wrote at iteration ``time`` (foam_bridge.confirm).
+
+    simpleFoam then starts from ``latestTime`` with the factors ``text`` (read from a regular file, so
+    the start-up does not pause), without a convergence test of its own (the bridge tests at the step
+    boundaries), writes its fields at every boundary (the bridge's checks read them) and pauses at the
+    boundaries after ``time``, as before.
+    """
+    _write_fixed_fv_solution(case, base, cfg, text)
+    _write_control(case, cfg, pause=True, restart_at=time)
+
+
+def write_check_case(case: Path, base: Path, dest: Path, cfg: FoamEnvConfig, time: int, text: bytes) -> None:
+    """A copy of the episode case in ``dest`` that runs one SIMPLE iteration from the fields of ``time``
+    with the factors ``text`` and no convergence test (foam_bridge.confirm); nothing is written."""
+    if dest.exists():
+        shutil.rmtree(dest)
+    dest.mkdir(parents=True)
+    for part in ("system", "constant"):
+        shutil.copytree(case / part, dest / part, symlinks=True,
+                        ignore=lambda directory, names: {n for n in names if n.startswith(("relaxation.",
+                                                                                             "fvSolution."))})
+    shutil.copytree(case / str(time), dest / str(time))
+    _write_fixed_fv_solution(dest, base, cfg, text)
+    _write_control(dest, cfg, pause=False, functions=False, restart_at=time, end=time + 1)
+
+
+def _write_fixed_fv_solution(case: Path, base: Path, cfg: FoamEnvConfig, text: bytes) -> None:
+    """The case's own fvSolution, no convergence test, the factors ``text`` from a regular file."""
+    (case / "system" / SIMPLE_INCLUDE).write_text(_simple_override(without_convergence_test(cfg)))
+    (case / "system" / FIXED_RELAXATION).write_bytes(text)
+    own = (base / "system" / "fvSolution").read_text()
+    (case / "system" / "fvSolution").write_text(
+        f'{own}\n#include "{SIMPLE_INCLUDE}"\n#include "{FIXED_RELAXATION}"\n')
+
+
 def relaxation_text(cfg: FoamEnvConfig, alpha_u: float, alpha_p: float, flat: bool = False) -> bytes:
     """The relaxationFactors entry the bridge feeds through the FIFO for one action.
 
@@ -471,18 +509,24 @@ def _set_builtin_inlet(case: Path, cfg: FoamEnvConfig, info: CaseInfo, speed: fl
             field["internalField"] = value
 
 
-def _write_control(case: Path, cfg: FoamEnvConfig, pause: bool, functions: bool = True) -> None:
+def _write_control(case: Path, cfg: FoamEnvConfig, pause: bool, functions: bool = True,
+                   restart_at: int | None = None, end: int | None = None) -> None:
     """system/foamBridge/controlDict (run control, OptimisationSwitches, functions), #included by
-    the case's controlDict."""
+    the case's controlDict. ``restart_at``: start from the latest time (that iteration), write the fields
+    at every boundary and pause only after it; ``end``: the last iteration (default max_iterations)."""
     settings = {
-        "startFrom": "startTime", "startTime": 0, "stopAt": "endTime", "endTime": cfg.max_iterations,
-        "deltaT": 1, "writeControl": "timeStep", "writeInterval": cfg.max_iterations,
+        "startFrom": "startTime" if restart_at is None else "latestTime", "startTime": 0,
+        "stopAt": "endTime", "endTime": cfg.max_iterations if end is None else end, "deltaT": 1,
+        "writeControl": "timeStep",
+        "writeInterval": cfg.max_iterations if restart_at is None else cfg.interval,
         "runTimeModifiable": True,
         "OptimisationSwitches": {"fileModificationSkew": 0, "fileModificationChecking": "timeStamp"},
-        "functions": _function_objects(cfg, case, pause) if functions else {},
+        "functions": _function_objects(cfg, case, pause, restart_at or 0) if functions else {},
     }
     if cfg.case_dir is None:  # the built-in case's results are written losslessly; a user's as theirs
         settings.update({"purgeWrite": 0, "writeFormat": "binary", "writePrecision": 17})
+    elif cfg.confirm_alpha_u is not None:  # but a check (and a restart) needs the fields, not a rounding
+        settings.update({"purgeWrite": 0, "writePrecision": 17})
     target = case / "system" / CONTROL_INCLUDE
     first = not target.exists()
     target.write_bytes(FoamFile.dumps(settings, ensure_header=False))
@@ -490,8 +534,9 @@ def _write_control(case: Path, cfg: FoamEnvConfig, pause: bool, functions: bool 
         _append(case / "system" / "controlDict", f'#include "{CONTROL_INCLUDE}"')
 
 
-def _function_objects(cfg: FoamEnvConfig, case: Path, pause: bool) -> dict[str, Any]:
-    """The paper's state printed every iteration, then the pause after every ``interval`` iterations."""
+def _function_objects(cfg: FoamEnvConfig, case: Path, pause: bool, after: int = 0) -> dict[str, Any]:
+    """The paper's state printed every iteration, then the pause after every ``interval`` iterations
+    (only after iteration ``after``: a restarted solver must not swap in the copies of earlier pauses)."""
     every_iteration = {"executeControl": "timeStep", "executeInterval": 1, "writeControl": "timeStep",
                        "writeInterval": 1, "log": True, "writeToFile": False, "writeFields": False}
     functions: dict[str, Any] = {
@@ -504,7 +549,7 @@ def _function_objects(cfg: FoamEnvConfig, case: Path, pause: bool) -> dict[str, 
                          "operation": "average", "regionType": "patch", "name": cfg.inlet_patch,
                          "surfaceFormat": "none", **every_iteration},
     }
-    boundaries = pause_boundaries(cfg)[1:]
+    boundaries = [k for k in pause_boundaries(cfg)[1:] if k > after]
     if pause and boundaries:
         copies = [[k, f'"$FOAM_CASE/system/{BRIDGE_DIR}/{_fv_solution_copy(case, k).name}"']
                   for k in boundaries]

@@ -32,6 +32,9 @@ TRAIN_CONVERGENCE: Mapping[str, float] = MappingProxyType({"U": 1e-3, "k": 1e-3,
 #: The paper's test criterion: U, k, omega < 5e-4 (p < 5e-2).
 TEST_CONVERGENCE: Mapping[str, float] = MappingProxyType({"U": 5e-4, "k": 5e-4, "omega": 5e-4, "p": 5e-2})
 
+#: A convergence threshold no residual meets: a run with it goes on to its iteration count.
+NEVER_CONVERGED = 1e-30
+
 SIMPLE_VARIANTS = ("SIMPLE", "SIMPLEC")
 #: ``relax_k_omega`` value that relaxes the turbulence fields with alpha_u (the agent's momentum factor).
 FOLLOW_ALPHA_U = "alpha_u"
@@ -96,6 +99,20 @@ class FoamEnvConfig:
         convergence: field -> threshold on the solver's initial residual (vector fields: the largest
             component), as simpleFoam's own ``SIMPLE.residualControl``. Default: the paper's training
             criterion (TRAIN_CONVERGENCE); TEST_CONVERGENCE is its test criterion.
+        confirm_alpha_u: a convergence test that relaxation cannot move. simpleFoam normalises each
+            initial residual with the relaxed matrix, whose diagonal grows as 1/alpha_u, so lowering
+            alpha_u lowers the residuals the criterion reads at once, field unchanged (on 2h at 50 m/s,
+            alpha_u 0.2 met the test criterion at a U field 21 % from the solution,
+            experiments/foam/README.md). ``None`` (default, the paper's): converged when the solver's
+            own test is met. A factor in (0, 1), e.g. 0.9 (the tutorial's alpha_u): the criterion must
+            also hold for the residuals normalised at that relaxation. When the solver meets it at K,
+            the bridge runs one SIMPLE iteration from the fields of K in a scratch copy, with this
+            alpha_u (the step's alpha_p, the case's k/omega factor), and reads its initial residuals
+            (foam_bridge.confirm). If they meet the criterion the episode is converged at K. If not,
+            the solver restarts from the fields of K with the step's factors and without its own
+            test, and the check runs at every later step boundary whose residuals meet the criterion;
+            the first one that passes ends the episode (converged at that boundary). Every check is
+            in the episode record's "confirmations".
         residual_features: extra observation entries: log10 of the latest initial residual of each
             ``convergence`` field at each of the last N step boundaries (0 = the paper's 1-D state).
         state_scale: the observed state is (mean_inlet |U|^2 + mean_cells |U|^2) / state_scale
@@ -144,6 +161,7 @@ class FoamEnvConfig:
     action_high: tuple[float, float] = (0.95, 0.95)
     relax_k_omega: float | str | None = None
     convergence: Mapping[str, float] = field(default_factory=lambda: dict(TRAIN_CONVERGENCE))
+    confirm_alpha_u: float | None = None
     residual_features: int = 0
     reward: str = "iterations"
     state_scale: float = U_REF**2
@@ -186,6 +204,10 @@ class FoamEnvConfig:
                    f"None, {FOLLOW_ALPHA_U!r} or a factor in (0, 1]")
         _check(len(self.convergence) > 0 and all(v > 0 for v in self.convergence.values()), "convergence",
                dict(self.convergence), "a non-empty {field: threshold > 0}")
+        if self.confirm_alpha_u is not None:
+            factor = self.confirm_alpha_u
+            _check(isinstance(factor, int | float) and not isinstance(factor, bool) and 0 < factor < 1,
+                   "confirm_alpha_u", factor, "None or a factor in (0, 1)")
         _check(_is_int(self.residual_features) and self.residual_features >= 0, "residual_features",
                self.residual_features, "an integer >= 0")
         _check(self.reward in REWARDS, "reward", self.reward, f"one of {REWARDS}")
@@ -249,6 +271,11 @@ class FoamEnvConfig:
     def observation_size(self) -> int:
         """Length of the observation vector: the paper's state plus the residual features."""
         return 1 + self.residual_features * len(self.convergence)
+
+
+def without_convergence_test(cfg: FoamEnvConfig) -> FoamEnvConfig:
+    """``cfg`` with every threshold of its criterion at NEVER_CONVERGED: the solver never stops itself."""
+    return dataclasses.replace(cfg, convergence={name: NEVER_CONVERGED for name in cfg.convergence})
 
 
 def failure_reward(cfg: FoamEnvConfig, iterations_before: int, cost_per_iteration: float = 1.0) -> float:

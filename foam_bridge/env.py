@@ -10,7 +10,8 @@ MDP (Pawar & Maulik, "Solver convergence acceleration"):
 - reward: -(K_t - K_{t-1}), K = SIMPLE iterations actually run; the return is minus the total. With
   ``cfg.reward`` "linear-iterations" or "solver-time", K is that cost instead (the linear solvers'
   inner iterations, the solver's CPU seconds, as the log counts them up to iteration K).
-- episode end: the solver's own ``SIMPLE.residualControl`` met (``converged``, terminated), the
+- episode end: the solver's own ``SIMPLE.residualControl`` met (``converged``, terminated; with
+  ``confirm_alpha_u`` only once a check at that relaxation confirms it, foam_bridge.confirm), the
   ``max_iterations`` cap (``truncated``), or a failure (terminated, reward :func:`failure_reward`):
   ``crashed`` (solver died, broken case), ``diverged`` (NaN/Inf or an initial residual above
   ``divergence_threshold``, or a state term above ``state_divergence_ratio`` x the inlet's |U|^2),
@@ -55,6 +56,7 @@ import numpy as np
 
 from foam_bridge import case as foam_case
 from foam_bridge.config import OBSERVATION_BOUND, FoamEnvConfig, cost_per_iteration, failure_reward, work_root
+from foam_bridge.confirm import confirm, meets
 from foam_bridge.logparse import LogParser, field_residual
 from foam_bridge.openfoam import find_openfoam
 from foam_bridge.solver import DIVERGED, EXITED, HUNG, MISSED, PAUSED, FoamSolver
@@ -148,12 +150,16 @@ class FoamCaseEnv:
         self._parser = LogParser(foam_case.CELLS_FUNCTION, foam_case.INLET_FUNCTION,
                                  self.cfg.divergence_threshold, state_limit)
         self._iterations = self._target = 0
+        self._restart_at: int | None = None  # a failed check: the solver goes on from these fields
+        self._unconfirmed = False  # a check has failed: the boundaries are checked from now on
         self._cost = 0.0
         self._features: deque[np.ndarray] = deque(
             [np.zeros(len(self.cfg.convergence))] * self.cfg.residual_features,
             maxlen=self.cfg.residual_features or None)
         self._episode = {"env_id": self.env_id, "seed": seed, "inlet_velocity": velocity, "actions": [],
                          "return": 0.0, "steps": 0, "solver_idle_s": 0.0, "started": time.monotonic()}
+        if self.cfg.confirm_alpha_u is not None:
+            self._episode["confirmations"] = []
         self._done = False
         self._obs = self._observation(inlet, cells)
         return self._obs.copy(), self._info("running", "", {})
@@ -169,6 +175,8 @@ class FoamCaseEnv:
         # stop before accounting: the whole output is then parsed, whatever had been read so far
         code = self._stop_solver() if event != PAUSED else None
         outcome, cause, iterations = self._classify(event, code)
+        if self.cfg.confirm_alpha_u is not None:
+            outcome, cause, iterations = self._confirmed(outcome, cause, iterations, float(alpha[1]), text)
         previous, self._iterations = self._iterations, max(iterations, self._iterations)
         spent, self._cost = self._cost, self._episode_cost()
         if outcome in FAILURES:
@@ -248,12 +256,46 @@ class FoamCaseEnv:
         if self._solver is None:
             fifo = partial(foam_case.relaxation_fifo, self.case_dir)
             self._solver = FoamSolver(self.case_dir, self.openfoam, self._parser, fifo)
+            if self._restart_at is not None:  # after a failed check: no start-up pause, these factors
+                foam_case.write_restart(self.case_dir, self.base, self.cfg, self._restart_at, text)
+                self._restart_at = None
+                self._solver.start()
+                return self._solver.wait(self.cfg.step_timeout_s, self._target)
             self._solver.start()
             event = self._solver.wait(self.cfg.step_timeout_s, 0)  # start-up: the first fvSolution read
             if event != PAUSED:
                 return event
         self._solver.release(text)
         return self._solver.wait(max(deadline - time.monotonic(), 0.0), self._target)
+
+    def _confirmed(self, outcome: str, cause: str, iterations: int, alpha_p: float, text: bytes
+                   ) -> tuple[str, str, int]:
+        """A step's (outcome, cause, K) under the check relaxation cannot move (cfg.confirm_alpha_u).
+
+        The solver's own test met at K is checked; so is every step boundary whose residuals meet the
+        criterion once a check has failed. A failed check at K < the step's boundary lets the solver go
+        on from the fields of K with the step's factors, within this step.
+        """
+        while True:
+            at_boundary = outcome == "running" and self._unconfirmed and meets(self.cfg, self._residuals())
+            if outcome != "converged" and not at_boundary:
+                return outcome, cause, iterations
+            check = confirm(self.case_dir, self.base, self.cfg, self.openfoam, iterations, alpha_p,
+                            self._residuals(), self.case_info.flat_relaxation)
+            self._episode["confirmations"].append(check.record())
+            if check.passed:
+                self._stop_solver()
+                return "converged", "", iterations
+            self._unconfirmed = True
+            if at_boundary:
+                return outcome, cause, iterations
+            self._parser.converged_at = None
+            self._restart_at = iterations
+            if iterations >= self._target:
+                return "running", "", iterations
+            event = self._advance(text)
+            code = self._stop_solver() if event != PAUSED else None
+            outcome, cause, iterations = self._classify(event, code)
 
     def _classify(self, event: str, code: int | None) -> tuple[str, str, int]:
         """(outcome, cause, K) of a solver event, from the fully parsed output of a stopped solver.

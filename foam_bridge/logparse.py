@@ -72,7 +72,8 @@ class LogParser:
     ``history`` (one residual dict per finished iteration, in order), ``cells_state`` /
     ``inlet_state`` / ``state_iteration`` (latest state terms and the iteration they belong to),
     ``linear_iterations`` (inner iterations of every linear solve so far, all fields), ``execution_time``
-    (the solver's CPU seconds at the last finished iteration),
+    (the solver's CPU seconds at the last finished iteration, summed over the processes of a run
+    restarted from its fields: their counts start from 0 again),
     ``converged_at``, ``fvsolution_rereads``, ``error`` (first crash line), ``diverged`` (cause text)
     and ``failed_at`` (the iteration in which divergence was detected; the parser ignores all output
     after that line).
@@ -97,6 +98,8 @@ class LogParser:
     diverged: str | None = None
     failed_at: int | None = None
     _current: dict[str, float] = field(default_factory=dict)
+    _time_base: float = 0.0  # CPU seconds of the earlier processes of a restarted run
+    _segment_time: float = 0.0
     _pending_function: str | None = None
     _pending_error: bool = False
     _partial: str = ""
@@ -129,7 +132,11 @@ class LogParser:
             self._residual(match.group(1), _to_float(match.group(2)))
         elif match := _EXECUTION.match(line):
             seconds = _to_float(match.group(1))
-            self.execution_time = seconds if math.isfinite(seconds) else self.execution_time
+            if math.isfinite(seconds):
+                if seconds < self._segment_time:  # a restarted solver counts from 0 again
+                    self._time_base += self._segment_time
+                self._segment_time = seconds
+                self.execution_time = self._time_base + seconds
             self.completed = self.iteration
             self.residuals = self._current
             self.history.append(self._current)

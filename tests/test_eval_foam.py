@@ -419,8 +419,9 @@ def _run_directly(cfg, uid, factors, case_copy):
 
 @needs_openfoam
 def test_a_subset_of_controllers_runs_only_those_and_the_same_episodes(evaluation, saved_run, tmp_path):
+    from foam_bridge.config import without_convergence_test
     from foam_bridge.fields import relative_l2
-    from jaxsimrl.evaluation.foam_eval import NEVER_CONVERGED, REFERENCE, episode_uid
+    from jaxsimrl.evaluation.foam_eval import REFERENCE, episode_uid
 
     full_out, full = evaluation
     out = tmp_path / "subset"
@@ -450,8 +451,7 @@ def test_a_subset_of_controllers_runs_only_those_and_the_same_episodes(evaluatio
     # every run's U error is the distance of its final field from the reference's, computed here again
     # from FoamCaseEnv runs of the same episodes
     cfg = dataclasses.replace(TRAIN_FOAM, convergence=dict(TEST_CONVERGENCE))
-    long_cfg = dataclasses.replace(cfg, max_iterations=600,
-                                   convergence={f: NEVER_CONVERGED for f in cfg.convergence})
+    long_cfg = dataclasses.replace(without_convergence_test(cfg), max_iterations=600)
     info, ref_field = _run_directly(long_cfg, episode_uid(REFERENCE, "h", VELOCITY, 0), (0.9, 0.8),
                                     tmp_path / "ref")
     assert info["iterations"] == 600

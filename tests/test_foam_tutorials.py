@@ -119,6 +119,30 @@ def test_t3a_converges_and_keeps_its_transition_model_factors(tmp_path: Path) ->
     assert {"wallShearStress", "kGraph"} <= set(control["functions"])
 
 
+def test_air_foil_2d_convergence_checked_at_its_own_and_at_a_higher_relaxation(tmp_path: Path) -> None:
+    """The convergence check (confirm_alpha_u) on a case of plain SIMPLE with Spalart-Allmaras (no k or
+    omega) that writes ascii fields, at its own factors (0.7, 0.3)."""
+
+    def run(confirm: float | None, name: str) -> tuple[list[float], dict]:
+        with FoamCaseEnv(_cfg(tmp_path / name, "airFoil2D", confirm_alpha_u=confirm)) as env:
+            env.reset(seed=0)
+            return _episode(env, (0.7, 0.3))
+
+    _, plain = run(None, "plain")
+    _, own = run(0.7, "own")
+    (check,) = own["episode"]["confirmations"]  # at its own alpha_u: the solver's K stands
+    assert (own["outcome"], own["iterations"]) == ("converged", plain["iterations"]) and check["passed"]
+    assert set(check["residuals"]) == {"U", "p"}
+    assert check["residuals"]["U"] == pytest.approx(check["solver_residuals"]["U"], rel=0.1)
+    rewards, higher = run(0.9, "higher")  # at 0.9 its U residual reads ~3x higher: the run goes on
+    first, *later = higher["episode"]["confirmations"]
+    assert first["iteration"] == plain["iterations"] and not first["passed"]
+    assert first["residuals"]["U"] > 2 * first["solver_residuals"]["U"]
+    assert higher["outcome"] == "converged" and later and later[-1]["passed"]
+    assert higher["iterations"] == later[-1]["iteration"] > plain["iterations"]
+    assert higher["iterations"] % 50 == 0 and sum(rewards) == -higher["iterations"]
+
+
 def test_backward_facing_step_2d_runs_capped_with_its_include_funcs(tmp_path: Path) -> None:
     # the paper's case (20,540 cells, six function objects of its own): two steps of 25 iterations,
     # then the cap, to keep the test short

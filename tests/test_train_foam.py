@@ -185,6 +185,15 @@ def test_reward_kind_sets_its_scale_and_is_fixed_on_resume(capsys, tmp_path):
     assert code == 2 and "--reward cannot be used with --resume" in err
 
 
+def test_the_convergence_check_is_a_flag_of_the_config_and_fixed_on_resume(capsys, tmp_path):
+    assert main(["train-foam", "--print-config"]) == 0
+    assert json.loads(capsys.readouterr().out)["foam"]["confirm_alpha_u"] is None  # the paper's test
+    assert main(["train-foam", "--print-config", "--confirm-alpha-u", "0.9"]) == 0
+    assert json.loads(capsys.readouterr().out)["foam"]["confirm_alpha_u"] == 0.9
+    code, err = run_cli(capsys, "--resume", str(tmp_path), "--confirm-alpha-u", "0.9")
+    assert code == 2 and "--confirm-alpha-u cannot be used with --resume" in err
+
+
 def test_episodes_csv_of_an_older_version_loads_without_the_cost_columns(tmp_path):
     old = tmp_path / "episodes.csv"
     old.write_text("index,env,update,seed,inlet_velocity,steps,iterations,return,outcome,cause,wall_time_s,"

@@ -23,7 +23,7 @@ import tempfile
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
-from foam_bridge.config import TEST_CONVERGENCE, FoamEnvConfig
+from foam_bridge.config import TEST_CONVERGENCE, FoamEnvConfig, without_convergence_test
 from foam_bridge.env import FoamCaseEnv
 from foam_bridge.fields import final_field, relative_l2
 from jaxsimrl.runs.atomic import atomic_write_json
@@ -32,7 +32,6 @@ FACTORS = (0.95, 0.875)
 LOW_ALPHA_U = 0.2
 DROP_AT = 3
 REFERENCE_ITERATIONS = 6000
-NEVER = 1e-30
 
 
 def run(name: str, cfg: FoamEnvConfig, drop_at: int | None, keep: Path) -> dict:
@@ -65,8 +64,7 @@ def main() -> None:
     args = parser.parse_args()
     test = FoamEnvConfig(step_height=args.step_height, inlet_velocity=args.inlet_velocity,
                          convergence=dict(TEST_CONVERGENCE), max_iterations=4000)
-    reference = dataclasses.replace(test, max_iterations=REFERENCE_ITERATIONS,
-                                    convergence={f: NEVER for f in TEST_CONVERGENCE})
+    reference = dataclasses.replace(without_convergence_test(test), max_iterations=REFERENCE_ITERATIONS)
     keep = Path(tempfile.mkdtemp(prefix="criterion_"))
     plan = {"reference": (reference, None), "constant": (test, None), "drop": (test, DROP_AT)}
     with ProcessPoolExecutor(2) as pool:

@@ -45,7 +45,14 @@ from foamlib import FoamFile
 
 from foam_bridge import case as foam_case
 from foam_bridge import validation as val
-from foam_bridge.config import STEP_HEIGHT_H, TEST_CONVERGENCE, TRAIN_CONVERGENCE, U_REF, FoamEnvConfig
+from foam_bridge.config import (
+    NEVER_CONVERGED,
+    STEP_HEIGHT_H,
+    TEST_CONVERGENCE,
+    TRAIN_CONVERGENCE,
+    U_REF,
+    FoamEnvConfig,
+)
 from foam_bridge.logparse import LogParser, field_residual
 from foam_bridge.openfoam import OpenFOAM, find_openfoam
 from foam_bridge.solver import run_to_end
@@ -54,8 +61,6 @@ from jaxsimrl.runs.atomic import atomic_write_bytes, atomic_write_json
 STATIONS_XH = (1.0, 4.0, 6.0, 10.0)
 FACTORS = (0.95, 0.95)
 RELAX_K_OMEGA = 0.8
-#: A residualControl threshold never met: simpleFoam runs the whole fixed iteration count.
-NEVER = 1e-30
 #: The mesh's upper wall is at y/h = 9 and the step's top at y/h = 1 for every step height (the floor
 #: behind the step is at 1 - H/h); the mesh is one cell deep, z from 0 to h, so the mid-plane is z = h/2.
 UPPER_WALL_Y_H = 9.0
@@ -126,7 +131,7 @@ def validation_config(mesh_scale: float, iterations: int,
     """The built-in case at U_ref with SIMPLEC, k/omega 0.8, and no residualControl stop."""
     return FoamEnvConfig(mesh_scale=mesh_scale, step_height=step_height, simple_variant="SIMPLEC",
                          relax_k_omega=RELAX_K_OMEGA, inlet_velocity=U_REF, max_iterations=iterations,
-                         convergence={name: NEVER for name in TRAIN_CONVERGENCE}).validate()
+                         convergence={name: NEVER_CONVERGED for name in TRAIN_CONVERGENCE}).validate()
 
 
 def run_uninterrupted(cfg: FoamEnvConfig, root: Path, alpha_u: float, alpha_p: float,

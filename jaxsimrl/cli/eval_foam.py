@@ -19,7 +19,7 @@ from jaxsimrl.cli.errors import fail, positive_float, positive_int, seed_type
 
 def register(subparsers: Any) -> None:
     """Add the ``eval-foam`` subcommand."""
-    from jaxsimrl.cli.foam import relaxation_factor
+    from jaxsimrl.cli.foam import add_confirm_argument, relaxation_factor
     from jaxsimrl.evaluation.foam_eval import CONTROLLERS
 
     parser = subparsers.add_parser(
@@ -57,6 +57,7 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--reference-iterations", type=positive_int, metavar="N",
                         help="first run the best constant (else the defaults) for N iterations per geometry "
                         "and velocity, and report each run's U error against it (default: no reference)")
+    add_confirm_argument(parser)
     parser.add_argument("--out", metavar="DIR", type=Path, help="output directory (default RUN_DIR/eval)")
     parser.set_defaults(func=run_eval_foam)
 
@@ -80,7 +81,8 @@ def run_eval_foam(args: argparse.Namespace) -> int:
                     mesh_scale=args.mesh_scale, samples=args.samples, pool=args.pool, seed=args.seed,
                     baseline_grid=args.baseline_grid, grid_alpha_u=tuple(args.grid_alpha_u),
                     grid_alpha_p=tuple(args.grid_alpha_p), out=args.out,
-                    controllers=tuple(args.controllers), reference_iterations=args.reference_iterations)
+                    controllers=tuple(args.controllers), reference_iterations=args.reference_iterations,
+                    confirm_alpha_u=args.confirm_alpha_u)
     _check_openfoam()
     with EvalProgress() as progress:
         try:
@@ -147,8 +149,9 @@ def results_table(report: dict[str, Any]) -> Any:
 
     table = Table(title="eval-foam: mean +- std over the converged runs", box=box.SIMPLE_HEAD, padding=(0, 1))
     with_error = report.get("reference") is not None
+    checked = report["case"].get("confirm_alpha_u") is not None
     columns = ("geom", "V", "controller", "conv.", "SIMPLE its", "wall s", "CPU s", "linear its")
-    for column in columns + (("U error",) if with_error else ()):
+    for column in columns + (("U error",) if with_error else ()) + (("failed checks",) if checked else ()):
         table.add_column(column, justify="left" if column in ("geom", "controller") else "right")
     for geometry in report["geometries"]:
         for velocity in report["velocities"]:
@@ -158,7 +161,8 @@ def results_table(report: dict[str, Any]) -> Any:
                 row = [geometry, f"{velocity:g}", SHORT_NAMES.get(controller, controller), converged,
                        _pm(cell["iterations"], 0), _pm(cell["wall_time_s"], 1), _pm(cell["cpu_time_s"], 1),
                        _pm(cell["linear_iterations"], 0)]
-                table.add_row(*row, *((_pm(cell["u_error"], 3),) if with_error else ()))
+                row += [_pm(cell["u_error"], 3)] if with_error else []
+                table.add_row(*row, *([str(cell["failed_checks"])] if checked else []))
     return table
 
 

@@ -37,6 +37,23 @@ def k_omega_factor(text: str) -> float | str:
     return FOLLOW_ALPHA_U if text == FOLLOW_ALPHA_U else relaxation_factor(text)
 
 
+def check_factor(text: str) -> float:
+    """argparse type: the relaxation of the convergence check (FoamEnvConfig.confirm_alpha_u), in (0, 1)."""
+    value = relaxation_factor(text)
+    if value == 1:  # SIMPLEC's momentum correction divides by 1/alpha_u - 1
+        raise argparse.ArgumentTypeError(f"expected a relaxation factor in (0, 1), got {text!r}")
+    return value
+
+
+def add_confirm_argument(parser: argparse.ArgumentParser) -> None:
+    """``--confirm-alpha-u A``: a convergence test relaxation cannot move (FoamEnvConfig.confirm_alpha_u)."""
+    parser.add_argument("--confirm-alpha-u", type=check_factor, metavar="A", dest="confirm_alpha_u",
+                        help="a convergence test relaxation cannot move: the criterion must also hold "
+                        "for the residuals normalised at alpha_u = A (e.g. 0.9), checked by one more SIMPLE "
+                        "iteration from the run's fields; a run that fails goes on (default: the solver's "
+                        "own test only, as the paper)")
+
+
 def register(subparsers: Any) -> None:
     """Add the ``grid-foam`` subcommand."""
     from foam_bridge.config import BUILTIN_RELAX_K_OMEGA, FOLLOW_ALPHA_U, MESH_SCALE_USABLE_MIN, STEP_HEIGHT_H
@@ -70,6 +87,7 @@ def register(subparsers: Any) -> None:
                         f"alpha_u (default: {BUILTIN_RELAX_K_OMEGA:g}, the paper's code's)")
     parser.add_argument("--criterion", choices=CRITERIA, default="train",
                         help="convergence criterion: the paper's train (1e-3) or test (5e-4) thresholds")
+    add_confirm_argument(parser)
     parser.add_argument("--out", required=True, help="output directory (created if missing)")
     parser.set_defaults(func=run_grid_foam)
 
@@ -81,7 +99,8 @@ def _config(args: argparse.Namespace) -> Any:
     cfg = FoamEnvConfig(mesh_scale=args.mesh_scale, step_height=args.step_height,
                         simple_variant=args.simple_variant,
                         inlet_velocity=args.inlet_velocity, max_iterations=args.max_iterations,
-                        relax_k_omega=args.relax_k_omega, convergence=dict(convergence))
+                        relax_k_omega=args.relax_k_omega, convergence=dict(convergence),
+                        confirm_alpha_u=args.confirm_alpha_u)
     try:
         return cfg.validate()
     except ValueError as err:

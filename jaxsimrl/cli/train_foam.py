@@ -83,6 +83,7 @@ def foam_ppo_defaults(num_envs: int, reward: str = "iterations") -> dict[str, An
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add train-foam to the ``jaxsimrl`` dispatcher."""
     from foam_bridge.config import MESH_SCALE_USABLE_MIN, REWARDS
+    from jaxsimrl.cli.foam import add_confirm_argument
 
     p = subparsers.add_parser(
         "train-foam", help="train PPO to set simpleFoam's relaxation factors (real OpenFOAM cases)",
@@ -102,6 +103,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--reward", choices=REWARDS, help="the cost an episode minimises: SIMPLE iterations "
                    "(default, the paper's), the linear solvers' inner iterations, or the solver's CPU "
                    "seconds (not bit-reproducible)")
+    add_confirm_argument(p)
     p.add_argument("--case", metavar="CASE_DIR", help="a simpleFoam case of your own instead of the "
                    "built-in backward-facing step")
     p.add_argument("--backend", choices=("local", "ray"), help="worker pool: local processes (default) or "
@@ -207,7 +209,8 @@ def _foam_config(args: argparse.Namespace, extra: dict[str, Any]) -> Any:
 
     values = {**foam_config_to_json(FoamEnvConfig()), **extra}
     flags = {"mesh_scale": args.mesh_scale, "step_height": args.step_height,
-             "max_iterations": args.max_iterations, "case_dir": args.case, "reward": args.reward}
+             "max_iterations": args.max_iterations, "case_dir": args.case, "reward": args.reward,
+             "confirm_alpha_u": args.confirm_alpha_u}
     values.update({name: value for name, value in flags.items() if value is not None})
     if values.get("case_dir") is None:  # the built-in case: its paper defaults, written out in config.json
         for name, value in PAPER_CASE.items():
@@ -225,7 +228,7 @@ def _resume_plan(args: argparse.Namespace) -> FoamPlan:
     from jaxsimrl.runs.run_dir import RunDir
 
     fixed = ["config", "num_envs", "mesh_scale", "step_height", "max_iterations", "case", "reward", "seed",
-             "out", "init_from"]
+             "out", "init_from", "confirm_alpha_u"]
     changed = [name for name in fixed + [k for k, _, _ in KNOBS] if getattr(args, name) is not None]
     if changed:
         flag = "--" + changed[0].replace("_", "-")

@@ -9,7 +9,8 @@ linear solve, e.g.
 and after every SIMPLE iteration ``ExecutionTime = 1.14 s  ClockTime = 1 s`` (ExecutionTime is the
 solver's CPU time: it does not grow while the solver sits paused between env steps, nor with a busy
 pool). :func:`solver_cost` sums the inner iterations of every solve in the log per field (the
-components Ux, Uy, Uz count as U) and takes the last ExecutionTime. foam_bridge.logparse reads the
+components Ux, Uy, Uz count as U) and takes the last ExecutionTime (summed over the processes of a
+restarted run). foam_bridge.logparse reads the
 same lines for residuals only; this module is separate so that the env's parser stays as it is.
 """
 
@@ -50,8 +51,14 @@ def solver_cost(log_text: str, vector_fields: tuple[str, ...] = ("U",)) -> Solve
     for match in _SOLVE.finditer(log_text):
         name = _field_of(match.group(1), vector_fields)
         counts[name] = counts.get(name, 0) + int(match.group(2))
-    times = _EXECUTION.findall(log_text)
-    return SolverCost(counts, float(times[-1]) if times else None)
+    times = [float(t) for t in _EXECUTION.findall(log_text)]
+    return SolverCost(counts, _cpu_seconds(times) if times else None)
+
+
+def _cpu_seconds(times: list[float]) -> float:
+    """The run's CPU seconds from its ExecutionTime lines: the last one, plus the last one of every
+    earlier process of a run restarted from its fields (foam_bridge.confirm), whose count starts at 0."""
+    return sum(before for before, after in zip(times, times[1:], strict=False) if after < before) + times[-1]
 
 
 def read_solver_cost(case_dir: str | Path, vector_fields: tuple[str, ...] = ("U",)) -> SolverCost | None:

@@ -42,7 +42,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from foam_bridge.config import STEP_HEIGHT_H, TEST_CONVERGENCE, FoamEnvConfig
+from foam_bridge.config import STEP_HEIGHT_H, TEST_CONVERGENCE, FoamEnvConfig, without_convergence_test
 from jaxsimrl.evaluation.foam_runner import EpisodeResult, Job
 from jaxsimrl.runs.atomic import atomic_write_json, atomic_write_text
 
@@ -64,11 +64,9 @@ CONTROLLERS = ("learned_deterministic", "learned_stochastic", "best_constant", "
 CASE_OMITTED = ("work_dir", "keep_cases", "step_height", "inlet_velocity", "action_low", "action_high")
 CSV_COLUMNS = ("controller", "geometry", "step_height", "velocity", "sample", "outcome", "cause",
                "iterations", "wall_time_s", "cpu_time_s", "linear_iterations", "p_linear_iterations",
-               "u_error", "steps", "actions")
+               "u_error", "failed_checks", "steps", "actions")
 #: Controller name of the reference runs (not a controller of the protocol: no row in the tables).
 REFERENCE = "reference"
-#: Convergence threshold of a reference run: never met, so it runs to its iteration count.
-NEVER_CONVERGED = 1e-30
 
 
 @dataclass(frozen=True)
@@ -88,6 +86,8 @@ class EvalSpec:
     out: Path | None = None
     controllers: tuple[str, ...] = CONTROLLERS
     reference_iterations: int | None = None
+    #: FoamEnvConfig.confirm_alpha_u of every run (None: the training config's own, the paper's test).
+    confirm_alpha_u: float | None = None
 
     def validate(self) -> EvalSpec:
         """One-line ValueError naming the first bad field; returns self."""
@@ -102,6 +102,9 @@ class EvalSpec:
             raise ValueError(f"controllers must be some of {', '.join(CONTROLLERS)}, got "
                              f"{list(self.controllers)}")
         _distinct("controllers", self.controllers)
+        if self.confirm_alpha_u is not None and not 0 < self.confirm_alpha_u < 1:
+            raise ValueError(f"confirm_alpha_u must be a relaxation factor in (0, 1), "
+                             f"got {self.confirm_alpha_u!r}")
         optional = ("reference_iterations",) if self.reference_iterations is not None else ()
         for name in ("samples", "pool", *optional):
             value = getattr(self, name)
@@ -161,15 +164,18 @@ def geometries(spec: EvalSpec, train: FoamEnvConfig) -> dict[str, float | None]:
     return {geometry_name(h): float(h) for h in heights}
 
 
-def eval_config(train: FoamEnvConfig, step_height: float | None, mesh_scale: float,
+def eval_config(train: FoamEnvConfig, spec: EvalSpec, step_height: float | None,
                 constants: Sequence[tuple[float, float]]) -> FoamEnvConfig:
-    """The training config under the test protocol: test criterion, this geometry and mesh; its action
-    box widened to hold the constant factors (they must not be clipped; learned and random actions lie
-    in the training box anyway)."""
+    """The training config under the test protocol: test criterion (checked at the spec's
+    confirm_alpha_u, if it has one), this geometry and the spec's mesh; its action box widened to hold
+    the constant factors (they must not be clipped; learned and random actions lie in the training box
+    anyway)."""
     from foam_bridge.grid import grid_config
 
-    cfg = dataclasses.replace(train, mesh_scale=mesh_scale, convergence=dict(TEST_CONVERGENCE),
+    cfg = dataclasses.replace(train, mesh_scale=spec.mesh_scale, convergence=dict(TEST_CONVERGENCE),
                               work_dir=None, keep_cases=False)
+    if spec.confirm_alpha_u is not None:
+        cfg = dataclasses.replace(cfg, confirm_alpha_u=spec.confirm_alpha_u)
     if step_height is not None:
         cfg = dataclasses.replace(cfg, step_height=step_height)
     return grid_config(cfg, [c[0] for c in constants], [c[1] for c in constants])
@@ -280,7 +286,7 @@ def evaluate_foam(spec: EvalSpec, on_result: Callable[[EpisodeResult, int, int],
         first = next(iter(shapes))
         say(f"no --baseline-grid: searching the best constant on a grid at V = {spec.velocities[0]:g} m/s, "
             f"{first}")
-        grid_cfg = eval_config(run.foam, shapes[first], spec.mesh_scale, [TUTORIAL_DEFAULTS])
+        grid_cfg = eval_config(run.foam, spec, shapes[first], [TUTORIAL_DEFAULTS])
         baseline = baseline_from_grid(spec, grid_cfg, spec.velocities[0], first, say)
     if baseline is not None:
         say(f"best constant ({baseline.alpha_u:g}, {baseline.alpha_p:g}) from {baseline.source}")
@@ -312,7 +318,7 @@ def _run_plan(spec: EvalSpec, run: Any, shapes: dict[str, float | None], jobs: l
             on_result(result, done, total)
 
     for name, height in shapes.items():
-        cfg = eval_config(run.foam, height, spec.mesh_scale, constant_factors(baseline))
+        cfg = eval_config(run.foam, spec, height, constant_factors(baseline))
         if references.wanted:
             references.run(cfg, name, spec.velocities, spec.pool, progress)
         mine = [j for j in jobs if j.geometry == name]
@@ -346,8 +352,7 @@ class References:
         from jaxsimrl.evaluation.foam_controllers import ConstantController
         from jaxsimrl.evaluation.foam_runner import run_episodes
 
-        long_run = dataclasses.replace(cfg, max_iterations=self.iterations,
-                                       convergence={f: NEVER_CONVERGED for f in cfg.convergence})
+        long_run = dataclasses.replace(without_convergence_test(cfg), max_iterations=self.iterations)
         controller = {REFERENCE: ConstantController(REFERENCE, self.factors)}
         for result in run_episodes(long_run, self.plan([geometry], velocities), controller, pool, progress,
                                    fields=True):
@@ -399,7 +404,8 @@ def run_row(result: EpisodeResult, step_height: float | None, u_error: float | N
         "cpu_time_s": None if cost is None else cost.cpu_time_s,
         "linear_iterations": None if cost is None else cost.total,
         "p_linear_iterations": None if cost is None else cost.of("p"),
-        "u_error": u_error, "steps": len(result.actions), "actions": result.actions,
+        "u_error": u_error, "failed_checks": sum(not c["passed"] for c in result.confirmations),
+        "steps": len(result.actions), "actions": result.actions,
     }
 
 
@@ -418,7 +424,8 @@ def cell_summary(rows: Sequence[dict[str, Any]], max_iterations: int) -> dict[st
 
     ``iterations``, ``wall_time_s``, ``cpu_time_s`` and the linear-solver counts are over the runs that
     converged; ``penalised_iterations`` counts every other run at ``max_iterations``, as the training
-    reward does (the return of a failed or truncated episode is -max_iterations).
+    reward does (the return of a failed or truncated episode is -max_iterations); ``failed_checks``:
+    the convergence checks its runs failed (FoamEnvConfig.confirm_alpha_u).
     """
     converged = [r for r in rows if r["outcome"] == "converged"]
     summary: dict[str, Any] = {"runs": list(rows), "outcomes": dict(Counter(r["outcome"] for r in rows)),
@@ -426,6 +433,7 @@ def cell_summary(rows: Sequence[dict[str, Any]], max_iterations: int) -> dict[st
     for key in ("iterations", "wall_time_s", "cpu_time_s", "linear_iterations", "p_linear_iterations",
                 "u_error"):
         summary[key] = stats([r[key] for r in converged])
+    summary["failed_checks"] = sum(r["failed_checks"] for r in rows)
     summary["penalised_iterations"] = stats(
         [r["iterations"] if r["outcome"] == "converged" else max_iterations for r in rows])
     return summary
@@ -446,7 +454,7 @@ def build_report(spec: EvalSpec, run: Any, baseline: Baseline | None, shapes: di
                 cell = [r for r in rows if r["controller"] == controller and r["geometry"] == geometry
                         and r["velocity"] == float(velocity)]
                 table[controller][geometry][f"{velocity:g}"] = cell_summary(cell, run.foam.max_iterations)
-    case = eval_config(run.foam, None, spec.mesh_scale, constant_factors(baseline))
+    case = eval_config(run.foam, spec, None, constant_factors(baseline))
     described = {
         "learned_deterministic": "the policy's mean action, one run per cell",
         "learned_stochastic": f"actions sampled from the policy, {spec.samples} runs per cell",

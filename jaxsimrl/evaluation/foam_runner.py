@@ -74,7 +74,8 @@ class EpisodeResult:
     for the rest of the batch (FoamCaseEnv's ``solver_idle_s``); ``cost``: linear-solver iterations and
     the solver's CPU seconds from its log (None if the log could not be read); ``trace``: every step;
     ``final_u``: the U field the run ended with (only with ``run_episodes(..., fields=True)``; None
-    if none was written).
+    if none was written); ``confirmations``: the episode's convergence checks (FoamEnvConfig.
+    confirm_alpha_u; empty without them).
     """
 
     job: Job
@@ -86,6 +87,7 @@ class EpisodeResult:
     cost: SolverCost | None
     trace: tuple[StepRecord, ...] = ()
     final_u: np.ndarray | None = None
+    confirmations: tuple[dict[str, Any], ...] = ()
 
 
 @dataclass
@@ -201,8 +203,9 @@ class _Driver:
         case = env_dir(self.root, slot) / EPISODE_DIR
         cost = read_solver_cost(case) if running.steps else None
         final = final_field(case, "U") if self.fields and running.steps else None
+        checks = tuple(record.get("confirmations", ())) if record is not None else ()
         result = EpisodeResult(running.job, outcome, cause, iterations, wall, actions, cost,
-                               tuple(running.trace), None if final is None else final[1])
+                               tuple(running.trace), None if final is None else final[1], checks)
         self.controllers[running.job.controller].end(running.job.uid)
         self.results[running.job.uid] = result
         self.on_result(result)

@@ -1,0 +1,106 @@
+"""The convergence check that relaxation cannot move (``FoamEnvConfig.confirm_alpha_u``).
+
+simpleFoam's residualControl reads each equation's initial residual normalised by the *relaxed*
+matrix. Relaxing the momentum equation with alpha_u divides its diagonal by alpha_u and adds the same
+amount times the old field to the source, so the unnormalised residual of the old field is unchanged
+while the normalisation grows: a lower alpha_u lowers the residual the criterion reads, at once, with
+the field where it was. On the backward-facing step that is enough to "converge" a run far from the
+solution (experiments/foam/README.md).
+
+The check normalises at one fixed relaxation instead: one SIMPLE iteration from the run's own fields
+(a scratch copy of the case at iteration K, started from its latest time) with alpha_u =
+``confirm_alpha_u``, the step's alpha_p and the case's turbulence factor, whose initial residuals are
+read from its log. The initial U residual of that iteration is computed from the fields of K before
+anything is solved, so the check measures the run's state, not a step of its own. It passes when the
+fields whose residual alpha_u normalises (:func:`checked_fields`) meet the criterion. Measured on the
+full mesh (test criterion): runs with alpha_u near 0.95 read 0.87-0.9 x their own U residual at 0.9;
+random factors that met the criterion read 1.5-12 x the threshold.
+
+A check and a restart read the fields the solver wrote, so a user's case is then written with
+``writePrecision 17`` (its own format): rounded fields would read as residuals of their own.
+"""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from foam_bridge import case as foam_case
+from foam_bridge.config import FOLLOW_ALPHA_U, FoamEnvConfig
+from foam_bridge.logparse import LogParser, field_residual
+from foam_bridge.openfoam import OpenFOAM
+from foam_bridge.solver import run_to_end
+
+#: Directory of the check's scratch case, next to the episode case.
+CHECK_DIR = "confirm"
+
+
+@dataclass(frozen=True)
+class Confirmation:
+    """One check: the iteration K it tested, whether the checked fields (:func:`checked_fields`) met
+    the criterion, all residuals at the check's relaxation, the solver's residuals at K, the check's
+    wall seconds, and what went wrong if the check itself could not run (then ``passed`` is False)."""
+
+    iteration: int
+    passed: bool
+    residuals: dict[str, float] = field(default_factory=dict)
+    solver_residuals: dict[str, float] = field(default_factory=dict)
+    wall_time_s: float = 0.0
+    error: str = ""
+
+    def record(self) -> dict[str, object]:
+        """The check as it appears in an episode record's "confirmations"."""
+        entry: dict[str, object] = {"iteration": self.iteration, "passed": self.passed,
+                                    "residuals": self.residuals, "solver_residuals": self.solver_residuals,
+                                    "wall_time_s": round(self.wall_time_s, 3)}
+        if self.error:
+            entry["error"] = self.error
+        return entry
+
+
+def meets(cfg: FoamEnvConfig, residuals: dict[str, float], fields: Sequence[str] | None = None) -> bool:
+    """Whether the criterion holds for ``fields`` (default all of it): as simpleFoam's own test, over
+    the fields the case solves (a Spalart-Allmaras case has no k or omega); False without any."""
+    solved = [name for name in (cfg.convergence if fields is None else fields)
+              if name in cfg.convergence and name in residuals]
+    return bool(solved) and all(residuals[name] <= cfg.convergence[name] for name in solved)
+
+
+def checked_fields(cfg: FoamEnvConfig) -> tuple[str, ...]:
+    """The fields whose residual alpha_u normalises: the velocity, and the turbulence fields when they
+    follow alpha_u. The others (p, turbulence at a fixed factor) the solver's own test has met already;
+    re-reading them after a change of alpha_u measures the change, not the run (on airFoil2D, plain
+    SIMPLE, p reads 5.7e-2 at alpha_u 0.9 from fields converged to 1e-6 at 0.7)."""
+    following = cfg.k_omega_relaxation == FOLLOW_ALPHA_U
+    return (cfg.velocity_field, *(cfg.turbulence_fields if following else ()))
+
+
+def confirm(episode: Path, base: Path, cfg: FoamEnvConfig, openfoam: OpenFOAM, iteration: int,
+            alpha_p: float, solver_residuals: dict[str, float], flat: bool = False) -> Confirmation:
+    """Check the fields the episode case wrote at ``iteration`` at alpha_u = ``cfg.confirm_alpha_u``
+    (``flat``: the case's relaxationFactors use the old flat layout)."""
+    assert cfg.confirm_alpha_u is not None
+    started = time.monotonic()
+    scratch = episode.parent / CHECK_DIR
+    text = foam_case.relaxation_text(cfg, cfg.confirm_alpha_u, alpha_p, flat)
+    parser = LogParser(foam_case.CELLS_FUNCTION, foam_case.INLET_FUNCTION, cfg.divergence_threshold)
+    error = ""
+    try:
+        foam_case.write_check_case(episode, base, scratch, cfg, iteration, text)
+        code, _ = run_to_end(scratch, openfoam, parser, cfg.step_timeout_s)
+        if code != 0 or not parser.history:
+            error = f"the check's simpleFoam exited with code {code}: {parser.error or 'no iteration ran'}"
+    except (OSError, ValueError, subprocess.TimeoutExpired) as err:  # e.g. a missing time directory
+        error = f"the check could not run: {err}"
+    finally:
+        shutil.rmtree(scratch, ignore_errors=True)
+    first = parser.history[0] if parser.history else {}
+    found = {name: field_residual(first, name) for name in cfg.convergence}
+    residuals = {name: float(value) for name, value in found.items() if value is not None}
+    passed = not error and meets(cfg, residuals, checked_fields(cfg))
+    return Confirmation(iteration, passed, residuals, dict(solver_residuals),
+                        time.monotonic() - started, error)

@@ -1,0 +1,125 @@
+"""The convergence check relaxation cannot move (FoamEnvConfig.confirm_alpha_u), on the real simpleFoam.
+
+The coarse mesh (0.4) at 50 m/s with the training criterion: (0.95, 0.875) converges at iteration 161.
+Dropping alpha_u to 0.2 after the first 100 iterations "converges" at 259 with the U field far from the
+solution: checked at alpha_u 0.9, its U residual is ~6x the threshold.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import pytest
+from foam_marks import needs_openfoam
+
+from foam_bridge.config import FoamEnvConfig, without_convergence_test
+from foam_bridge.confirm import meets
+from foam_bridge.env import FoamCaseEnv
+from foam_bridge.logparse import LogParser
+from jaxsimrl.cli.main import main
+from jaxsimrl.evaluation.foam_cost import solver_cost
+
+HONEST = [(0.95, 0.875)]
+#: alpha_u 0.2 from iteration 100 to 300, then back to 0.95.
+DROP = [(0.95, 0.875), (0.2, 0.875), (0.2, 0.875), (0.95, 0.875)]
+
+
+def _cfg(tmp_path, **overrides) -> FoamEnvConfig:
+    base = dict(mesh_scale=0.4, inlet_velocity=50.0, max_iterations=1500, step_timeout_s=60.0,
+                work_dir=tmp_path)
+    return FoamEnvConfig(**{**base, **overrides})
+
+
+def _episode(cfg: FoamEnvConfig, schedule) -> tuple[list[dict], dict, list[dict]]:
+    """(per-step infos, the episode record, the solver's residual history) of one episode."""
+    infos = []
+    with FoamCaseEnv(cfg) as env:
+        env.reset(seed=0)
+        while True:
+            _, reward, terminated, truncated, info = env.step(schedule[min(len(infos), len(schedule) - 1)])
+            infos.append({**info, "reward": reward})
+            if terminated or truncated:
+                return infos, info["episode"], list(env.parser.history)
+
+
+@needs_openfoam
+def test_an_honest_run_is_confirmed_where_the_solver_stopped(tmp_path):
+    plain, plain_record, _ = _episode(_cfg(tmp_path / "plain"), HONEST)
+    infos, record, _ = _episode(_cfg(tmp_path / "checked", confirm_alpha_u=0.9), HONEST)
+    assert [(i["iterations"], i["outcome"], i["reward"]) for i in infos] == [
+        (i["iterations"], i["outcome"], i["reward"]) for i in plain]
+    assert "confirmations" not in plain_record
+    (check,) = record["confirmations"]
+    cfg = _cfg(tmp_path)
+    assert check["passed"] and check["iteration"] == record["iterations"] and meets(cfg, check["residuals"])
+    # normalised at a lower alpha_u than the run's 0.95, its U residual reads lower, not equal
+    assert check["residuals"]["U"] < check["solver_residuals"]["U"]
+
+
+@needs_openfoam
+def test_a_relaxation_artefact_fails_the_check_and_the_run_goes_on(tmp_path):
+    plain, _, plain_history = _episode(_cfg(tmp_path / "plain"), DROP)
+    fooled = plain[-1]["iterations"]
+    assert plain[-1]["outcome"] == "converged" and 200 < fooled < 300  # the solver's own test was fooled
+
+    cfg = _cfg(tmp_path / "checked", confirm_alpha_u=0.9)
+    infos, record, history = _episode(cfg, DROP)
+    first, *later = record["confirmations"]
+    assert first["iteration"] == fooled and not first["passed"]
+    assert first["residuals"]["U"] > 3 * cfg.convergence["U"] >= first["solver_residuals"]["U"]
+    # the episode went on, step by step, and ended at the first boundary whose check passed
+    assert [i["iterations"] for i in infos] == [100 * (t + 1) for t in range(len(infos))]
+    assert infos[-1]["outcome"] == "converged" and record["return"] == -infos[-1]["iterations"]
+    assert [c["passed"] for c in later] == [False] * (len(later) - 1) + [True]
+    assert all(c["iteration"] % cfg.interval == 0 for c in later)
+    assert all(not meets(cfg, c["residuals"]) for c in record["confirmations"][:-1])
+    # the solver went on from the fields it stopped at: an uninterrupted run (no test at all) agrees
+    _, _, reference = _episode(without_convergence_test(_cfg(tmp_path / "ref", max_iterations=400)), DROP)
+    assert len(history) == infos[-1]["iterations"]
+    for mine, theirs in zip(history[fooled - 5:], reference[fooled - 5:len(history)], strict=True):
+        assert mine.keys() == theirs.keys()
+        assert all(mine[f] == pytest.approx(theirs[f], rel=1e-3) for f in mine)
+    assert history[:fooled] == plain_history[:fooled]
+
+
+def test_the_check_factor_is_validated():
+    for bad in (0, 1, 1.2, -0.5, True, "0.9"):
+        with pytest.raises(ValueError, match="confirm_alpha_u"):
+            FoamEnvConfig(confirm_alpha_u=bad).validate()
+    assert FoamEnvConfig(confirm_alpha_u=0.9).validate().confirm_alpha_u == 0.9
+
+
+@pytest.mark.parametrize("command", [["train-foam"], ["eval-foam", "some_run"],
+                                     ["grid-foam", "--alpha-u", "0.9", "--alpha-p", "0.9", "--out", "x"]])
+def test_a_bad_check_factor_is_a_one_line_error(command, capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main([*command, "--confirm-alpha-u", "1"])
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert "--confirm-alpha-u" in err and "(0, 1)" in err
+
+
+_LOG = "".join(f"Time = {k}\nsmoothSolver:  Solving for Ux, Initial residual = 0.1, Final residual = 0.01, "
+               f"No Iterations 2\nExecutionTime = {t} s  ClockTime = 1 s\n\n"
+               for k, t in ((1, 0.5), (2, 1.25), (3, 0.25), (4, 0.75)))
+
+
+def test_cpu_time_of_a_restarted_run_adds_up_its_processes():
+    """A run restarted from its fields prints ExecutionTime from 0 again: 1.25 s, then 0.75 s more."""
+    parser = LogParser("cells", "inlet")
+    parser.feed(_LOG)
+    assert parser.execution_time == pytest.approx(2.0) and parser.completed == 4
+    cost = solver_cost(_LOG)
+    assert cost.cpu_time_s == pytest.approx(2.0) and cost.of("U") == 8
+
+
+def test_eval_spec_passes_the_check_to_every_run(tmp_path):
+    from jaxsimrl.evaluation.foam_eval import EvalSpec, eval_config
+
+    spec = EvalSpec(run_dir=tmp_path, confirm_alpha_u=0.9).validate()
+    cfg = eval_config(FoamEnvConfig(), spec, 0.0254, [(0.95, 0.3)])
+    assert cfg.confirm_alpha_u == 0.9 and cfg.step_height == 0.0254
+    plain = eval_config(FoamEnvConfig(), EvalSpec(run_dir=tmp_path), None, [(0.9, 0.8)])
+    assert plain.confirm_alpha_u is None
+    with pytest.raises(ValueError, match="confirm_alpha_u"):
+        dataclasses.replace(spec, confirm_alpha_u=1.0).validate()
