@@ -428,9 +428,13 @@ def test_a_subset_of_controllers_runs_only_those_and_the_same_episodes(evaluatio
     code = main(["eval-foam", str(saved_run), "--velocities", str(VELOCITY), "--step-height", "0.0127",
                  "--mesh-scale", "0.4", "--samples", "2", "--pool", "2", "--out", str(out),
                  "--controllers", "tutorial_defaults", "learned_deterministic",
-                 "--reference-iterations", "600"])
+                 "--reference-iterations", "600", "--confirm-alpha-u", "0.9"])
     assert code == 0
     report = json.loads((out / "eval.json").read_text())
+    # every run's convergence checked at alpha_u 0.9: both controllers end at or above it, so their
+    # runs pass at once and stay the same episodes as the full evaluation's (which had no check)
+    assert report["case"]["confirm_alpha_u"] == 0.9 and full["case"]["confirm_alpha_u"] is None
+    assert [report["results"][c]["h"]["50"]["failed_checks"] for c in report["results"]] == [0, 0]
     # no best constant asked for: no grid is run, and the report says there is no baseline
     assert "baseline_grid.csv" not in {p.name for p in out.iterdir()} and report["baseline"] is None
     assert list(report["results"]) == list(report["controllers"]) == ["learned_deterministic",
