@@ -64,6 +64,7 @@ from foamlib import FoamFile
 from foam_bridge import foamdict
 from foam_bridge.config import FOLLOW_ALPHA_U, STEP_HEIGHT_H, FoamEnvConfig, without_convergence_test
 from foam_bridge.errors import CaseError
+from foam_bridge.fields import time_directories
 from foam_bridge.openfoam import OpenFOAM
 
 TEMPLATE_DIR = Path(__file__).parent / "cases" / "backward_facing_step"
@@ -408,7 +409,8 @@ def write_check_case(case: Path, base: Path, dest: Path, cfg: FoamEnvConfig, tim
         shutil.copytree(case / part, dest / part, symlinks=True,
                         ignore=lambda directory, names: {n for n in names if n.startswith(("relaxation.",
                                                                                              "fvSolution."))})
-    shutil.copytree(case / str(time), dest / str(time))
+    (written,) = [path for value, path in time_directories(case) if value == time] or [case / str(time)]
+    shutil.copytree(written, dest / written.name)
     _write_fixed_fv_solution(dest, base, cfg, text)
     _write_control(dest, cfg, pause=False, functions=False, restart_at=time, end=time + 1)
 
