@@ -64,6 +64,28 @@ def _to_float(text: str) -> float:
 
 
 @dataclass
+class CpuClock:
+    """A run's CPU seconds from its ``ExecutionTime`` lines, fed in order with :meth:`add`.
+
+    A solver restarted from the run's fields (foam_bridge.confirm) counts from 0 again, so a value
+    below the last one starts a new process: ``total`` is its time plus the last time of every
+    earlier process.
+    """
+
+    total: float = 0.0
+    _earlier: float = 0.0
+    _last: float = 0.0
+
+    def add(self, seconds: float) -> float:
+        """Count one ExecutionTime value; returns the total so far."""
+        if seconds < self._last:
+            self._earlier += self._last
+        self._last = seconds
+        self.total = self._earlier + seconds
+        return self.total
+
+
+@dataclass
 class LogParser:
     """Feed it the solver's output chunk by chunk; read the latest facts from its attributes.
 
@@ -98,8 +120,7 @@ class LogParser:
     diverged: str | None = None
     failed_at: int | None = None
     _current: dict[str, float] = field(default_factory=dict)
-    _time_base: float = 0.0  # CPU seconds of the earlier processes of a restarted run
-    _segment_time: float = 0.0
+    _clock: CpuClock = field(default_factory=CpuClock)
     _pending_function: str | None = None
     _pending_error: bool = False
     _partial: str = ""
@@ -133,10 +154,7 @@ class LogParser:
         elif match := _EXECUTION.match(line):
             seconds = _to_float(match.group(1))
             if math.isfinite(seconds):
-                if seconds < self._segment_time:  # a restarted solver counts from 0 again
-                    self._time_base += self._segment_time
-                self._segment_time = seconds
-                self.execution_time = self._time_base + seconds
+                self.execution_time = self._clock.add(seconds)
             self.completed = self.iteration
             self.residuals = self._current
             self.history.append(self._current)

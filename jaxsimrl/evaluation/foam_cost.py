@@ -20,6 +20,8 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
+from foam_bridge.logparse import CpuClock
+
 _SOLVE = re.compile(r"Solving for (\w+), Initial residual = \S+, Final residual = \S+, No Iterations (\d+)")
 _EXECUTION = re.compile(r"^ExecutionTime = (\S+) s", re.MULTILINE)
 _COMPONENT = re.compile(r"^(\w+?)[xyz]$")
@@ -51,14 +53,11 @@ def solver_cost(log_text: str, vector_fields: tuple[str, ...] = ("U",)) -> Solve
     for match in _SOLVE.finditer(log_text):
         name = _field_of(match.group(1), vector_fields)
         counts[name] = counts.get(name, 0) + int(match.group(2))
-    times = [float(t) for t in _EXECUTION.findall(log_text)]
-    return SolverCost(counts, _cpu_seconds(times) if times else None)
-
-
-def _cpu_seconds(times: list[float]) -> float:
-    """The run's CPU seconds from its ExecutionTime lines: the last one, plus the last one of every
-    earlier process of a run restarted from its fields (foam_bridge.confirm), whose count starts at 0."""
-    return sum(before for before, after in zip(times, times[1:], strict=False) if after < before) + times[-1]
+    times = _EXECUTION.findall(log_text)
+    clock = CpuClock()
+    for seconds in times:
+        clock.add(float(seconds))
+    return SolverCost(counts, clock.total if times else None)
 
 
 def read_solver_cost(case_dir: str | Path, vector_fields: tuple[str, ...] = ("U",)) -> SolverCost | None:
