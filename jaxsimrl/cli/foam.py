@@ -40,7 +40,7 @@ def k_omega_factor(text: str) -> float | str:
 def check_factor(text: str) -> float:
     """argparse type: the relaxation of the convergence check (FoamEnvConfig.confirm_alpha_u), in (0, 1)."""
     value = relaxation_factor(text)
-    if value == 1:  # SIMPLEC's momentum correction divides by 1/alpha_u - 1
+    if value == 1:  # unrelaxed, SIMPLEC (rAtU = 1/(1/rAU - H1)) breaks down: the check ran no iteration
         raise argparse.ArgumentTypeError(f"expected a relaxation factor in (0, 1), got {text!r}")
     return value
 
