@@ -9,7 +9,7 @@ import pytest
 
 from jaxsimrl.agents.ppo import PolicyParams, PPOConfig, make_policy, make_train
 from jaxsimrl.agents.ppo import normalizer as norm
-from jaxsimrl.agents.ppo.distribution import gaussian, to_box
+from jaxsimrl.agents.ppo.distribution import gaussian, squashed_entropy, to_box, widened
 from jaxsimrl.agents.ppo.learner import _minibatch
 from jaxsimrl.agents.ppo.losses import Batch, compute_gae, ppo_loss
 from jaxsimrl.agents.ppo.networks import initial_carry, make_network
@@ -43,6 +43,57 @@ def test_action_mapping_stays_inside_the_box_and_maps_zero_to_the_centre():
     assert bool(jnp.all(actions >= low)) and bool(jnp.all(actions <= high))
     assert float(jnp.max(jnp.abs(actions))) > 0.24  # it does reach towards the edges
     np.testing.assert_allclose(to_box(jnp.zeros(3), low, high), (low + high) / 2, atol=1e-7)
+
+
+def test_action_margin_makes_the_bounds_reachable_and_zero_keeps_plain_tanh():
+    low, high = jnp.array([0.2, -1.0]), jnp.array([0.95, 1.0])
+    u = jnp.linspace(-8.0, 8.0, 4001)[:, None] * jnp.ones(2)
+    plain = to_box(u, low, high)
+    np.testing.assert_array_equal(to_box(u, low, high, 0.0), plain)  # margin 0 is the plain squash
+    near = jnp.abs(u[:, 0]) < 4  # the plain tanh only approaches the bounds (float32 rounds beyond ~9)
+    assert bool(jnp.all(plain[near] < high)) and bool(jnp.all(plain[near] > low))
+    clipped = to_box(u, low, high, 0.05)
+    assert bool(jnp.all(clipped >= low)) and bool(jnp.all(clipped <= high))
+    assert bool(jnp.all(clipped[u[:, 0] > 2.5] == high)) and bool(jnp.all(clipped[u[:, 0] < -2.5] == low))
+    assert bool(jnp.all(jnp.diff(clipped, axis=0) >= 0))  # still monotone in u
+    # inside the box the map is the tanh onto the widened box (centre unchanged)
+    lo, hi = widened(low, high, 0.05)
+    np.testing.assert_allclose(lo, low - 0.05 * (high - low))
+    np.testing.assert_allclose(to_box(jnp.zeros(2), low, high, 0.05), (low + high) / 2, atol=1e-7)
+    # entropy: a wider squash box spreads the same Gaussian over more width (+log(1.1) per dimension)
+    mean, log_std = jnp.zeros((1, 2)), jnp.full(2, -1.0)
+    gain = squashed_entropy(mean, log_std, lo, hi) - squashed_entropy(mean, log_std, low, high)
+    np.testing.assert_allclose(gain, 2 * np.log(1.1), rtol=1e-5)
+
+
+def test_policy_with_an_action_margin_acts_on_the_bound_and_its_distribution_has_mass_there():
+    from jaxsimrl.introspect.squashed import ActionDistribution
+
+    config = PPOConfig(**{**TINY.to_dict(), "network": "mlp", "seq_len": 1, "num_minibatches": 2,
+                          "action_margin": 0.1})
+    policy = make_policy(config, Lorenz(), Lorenz().default_params())
+    params = policy.network.init(jax.random.PRNGKey(0), policy.initial_carry(1), jnp.zeros((1, 1, 6)),
+                                 jnp.zeros((1, 1), bool))
+    head = params["params"][f"Dense_{len(config.hidden_sizes)}"]  # the actor's mean
+    head["bias"], head["kernel"] = jnp.full_like(head["bias"], 4.0), jnp.zeros_like(head["kernel"])
+    state = PolicyParams(params, norm.init_normalizer(6))
+    action, _ = policy.act(state, jnp.zeros((3, 6)), policy.initial_carry(3), jnp.ones(3, bool), None)
+    np.testing.assert_array_equal(action, jnp.broadcast_to(policy.high, action.shape))
+    plain = PPOConfig(**{**config.to_dict(), "action_margin": 0.0})
+    below, _ = make_policy(plain, Lorenz()).act(state, jnp.zeros((3, 6)), policy.initial_carry(3),
+                                                jnp.ones(3, bool), None)
+    assert bool(jnp.all(below < policy.high))
+    # the distribution: a point mass on each bound, the density inside integrates to the rest
+    low, high = jnp.array([0.0]), jnp.array([1.0])
+    dist = ActionDistribution(jnp.array([0.5]), jnp.array([1.0]), low, high, 0.2)
+    draws = dist.sample(jax.random.PRNGKey(5), (20000,))
+    lo, hi = widened(low, high, 0.2)
+    y = 2 * (high - lo) / (hi - lo) - 1  # tanh(u) at the upper bound
+    p_high = 1 - jax.scipy.stats.norm.cdf(jnp.arctanh(y), 0.5, 1.0)
+    np.testing.assert_allclose(jnp.mean(draws == high), p_high, atol=0.01)
+    grid = jnp.linspace(1e-4, 1 - 1e-4, 20001)[:, None]
+    inside = jnp.sum(jnp.exp(dist.log_prob(grid))) * (grid[1, 0] - grid[0, 0])
+    np.testing.assert_allclose(inside, 1 - jnp.mean((draws == high) | (draws == low)), atol=0.01)
 
 
 def _rollout(config: PPOConfig, env_params):

@@ -39,6 +39,7 @@ def run_cli(capsys, *argv: str) -> tuple[int, str]:
     (["--num-envs", "2", "--pool", "3"], "pool must be an integer in [1, num_envs=2]"),
     (["--mesh-scale", "-1"], "expected a positive number"),
     (["--gamma", "2"], "gamma must be a number in [0, 1]"),
+    (["--action-margin", "0.7"], "action_margin must be a number in [0, 0.5]"),
     (["--ray-address", "auto"], "--ray-address needs --backend ray"),
     (["--case", "no/such/case"], "does not exist"),
 ])

@@ -57,6 +57,9 @@ KNOBS: tuple[tuple[str, Any, str], ...] = (
     ("reward_scale", positive_float, "rewards (minus the --reward cost) are multiplied by this before GAE "
                                      "(default: 1e-3 for iterations, 1e-4 for linear-iterations, 0.1 for "
                                      "solver-time)"),
+    ("action_margin", float, "the tanh squash maps onto the action box widened by this fraction of its "
+                             "width on each side, then clips into the box, so the bounds are reachable "
+                             "(default 0: plain tanh, bounds only approached)"),
 )
 
 

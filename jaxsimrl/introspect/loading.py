@@ -90,7 +90,7 @@ class LoadedPolicy:
         carry, mean, log_std, _ = self._step(batch, state, single)
         u = mean if deterministic else sample_batch(jax.random.split(self._next_key(key), len(mean)), mean,
                                                     log_std)[0]
-        return self._answer(distribution.to_box(u, self.action_low, self.action_high), single), \
+        return self._answer(self.to_box(u), single), \
             self._carry_out(carry, single)
 
     def distribution(self, obs: Obs, state: Carry | None = None) -> ActionDistribution:
@@ -99,7 +99,7 @@ class LoadedPolicy:
         _, mean, log_std, _ = self._step(batch, state, single)
         mean = mean[0] if single else mean
         scale = jnp.broadcast_to(jnp.exp(log_std), mean.shape)
-        return ActionDistribution(mean, scale, self.action_low, self.action_high)
+        return ActionDistribution(mean, scale, self.action_low, self.action_high, self.config.action_margin)
 
     def value(self, obs: Obs, state: Carry | None = None) -> np.ndarray:
         """The critic's value of ``obs`` in the env's reward units (the critic learns scaled rewards)."""
@@ -113,7 +113,10 @@ class LoadedPolicy:
         batched = jax.tree.map(lambda leaf: leaf[None], carry)
         _, mean, _, _ = forward(self.policy.network.apply, self.config, self.params.params,
                                 self.params.normalizer, batched, obs[None], jnp.reshape(start, (1,)))
-        return distribution.to_box(mean[0], self.action_low, self.action_high)
+        return self.to_box(mean[0])
+
+    def _to_box(self, u: jax.Array) -> jax.Array:
+        return distribution.to_box(u, self.action_low, self.action_high, self.config.action_margin)
 
     def rollout(self, env_params: Any = None, steps: int | None = None, episodes: int = 1, seed: int = 0,
                 deterministic: bool = True, **options: Any) -> dict[str, np.ndarray]:

@@ -21,7 +21,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxsimrl.agents.ppo import distribution
 from jaxsimrl.agents.ppo.acting import forward, sample_batch
 
 
@@ -67,7 +66,7 @@ def _scan(policy: Any, acting: Any, env_params: Any, key: jax.Array, steps: int,
                                               acting.normalizer, carry, obs, starts)
         if not deterministic:
             mean = sample_batch(jax.random.split(jax.random.fold_in(act_key, t), episodes), mean, log_std)[0]
-        action = distribution.to_box(mean, policy.action_low, policy.action_high)
+        action = policy.to_box(mean)
         keys = jax.random.split(jax.random.fold_in(step_key, t), episodes)
         out = jax.vmap(env.step, in_axes=(0, 0, 0, None))(keys, env_state, action, env_params)
         row = {"obs": obs, "state": env_state, "action": action, "value": value / config.reward_scale,

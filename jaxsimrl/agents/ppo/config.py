@@ -53,6 +53,9 @@ class PPOConfig:
     obs_std_floor: float = 0.01
     reward_scale: float = 0.01  # rewards are multiplied by this before GAE (keeps values O(1))
     init_log_std: float = -0.5  # initial log std of the pre-squash Gaussian
+    # The tanh squash maps onto the action box widened by this fraction of its width on each side, and
+    # actions are clipped into the box: 0 = plain tanh (bounds approached, never reached).
+    action_margin: float = 0.0
     updates_per_chunk: int = 5  # updates per jitted run_chunk call (progress / checkpoint granularity)
 
     # ---- derived sizes -------------------------------------------------------------------------
@@ -163,6 +166,7 @@ _FIELD_RULES: tuple[tuple[tuple[str, ...], Callable[[Any], bool], str], ...] = (
     (("hidden_sizes",), lambda v: isinstance(v, tuple | list) and bool(v)
      and all(_is_int(h) and h > 0 for h in v), "a non-empty list of positive ints"),
     (("init_log_std",), lambda v: _is_number(v) and -10 <= v <= 2, "a number in [-10, 2]"),
+    (("action_margin",), lambda v: _is_number(v) and 0 <= v <= 0.5, "a number in [0, 0.5]"),
     (("anneal_lr", "clip_value", "normalize_advantages", "normalize_obs"), lambda v: isinstance(v, bool),
      "true or false"),
 )

@@ -14,7 +14,7 @@ from typing import Any, NamedTuple
 import jax
 import jax.numpy as jnp
 
-from jaxsimrl.agents.ppo.distribution import gaussian, squashed_entropy
+from jaxsimrl.agents.ppo.distribution import gaussian, squashed_entropy, widened
 
 
 def compute_gae(rewards: jax.Array, values: jax.Array, terminated: jax.Array, truncated: jax.Array,
@@ -70,7 +70,8 @@ def ppo_loss(params: Any, apply_fn: Any, batch: Batch, config: Any, low: jax.Arr
              ) -> tuple[jax.Array, dict[str, jax.Array]]:
     """Clipped surrogate + value loss - entropy bonus, averaged over this device's part of the batch.
 
-    The entropy is that of the squashed action in the box [low, high] (see distribution.py).
+    The entropy is that of the squashed action in the box [low, high], widened by the config's
+    action_margin (see distribution.py).
 
     No collectives in here on purpose: the caller averages gradients and metrics across devices
     (pmean of equal-size local means = the global mean), and standardises advantages beforehand.
@@ -89,7 +90,7 @@ def ppo_loss(params: Any, apply_fn: Any, batch: Batch, config: Any, low: jax.Arr
         clipped = batch.value + jnp.clip(value - batch.value, -config.clip_eps, config.clip_eps)
         value_err = jnp.maximum(value_err, jnp.square(clipped - batch.target))
     value_loss = 0.5 * jnp.mean(value_err)
-    entropy = jnp.mean(squashed_entropy(mean, log_std, low, high))
+    entropy = jnp.mean(squashed_entropy(mean, log_std, *widened(low, high, config.action_margin)))
     total = policy_loss + config.vf_coef * value_loss - config.ent_coef * entropy
     metrics = {
         "policy_loss": policy_loss,

@@ -51,7 +51,7 @@ class Policy:
         carry, mean, log_std, _ = forward(self.network.apply, self.config, state_or_params.params,
                                           state_or_params.normalizer, carry, obs, done)
         u = mean if deterministic else sample_batch(jax.random.split(key, mean.shape[0]), mean, log_std)[0]
-        return distribution.to_box(u, self.low, self.high), carry
+        return distribution.to_box(u, self.low, self.high, self.config.action_margin), carry
 
 
 def make_policy(config: PPOConfig, env: Any = None, env_params: Any = None) -> Policy:

@@ -98,7 +98,7 @@ def _env_step(ctx: RolloutContext, runner: RunnerState, key: jax.Array
     carry, mean, log_std, value = forward(ctx.apply_fn, ctx.config, runner.params, runner.normalizer,
                                           runner.carry, runner.obs, runner.starts)
     u, log_prob = sample_batch(local_keys(ctx, act_key), mean, log_std)
-    action = distribution.to_box(u, ctx.low, ctx.high)
+    action = distribution.to_box(u, ctx.low, ctx.high, ctx.config.action_margin)
     env_keys = jnp.stack([local_keys(ctx, step_key), local_keys(ctx, reset_key)], axis=1)
     step = ctx.vec.step(env_keys, runner.env_state, action)
     done = step.terminated | step.truncated
