@@ -115,7 +115,8 @@ class LoadedPolicy:
                                 self.params.normalizer, batched, obs[None], jnp.reshape(start, (1,)))
         return self.to_box(mean[0])
 
-    def _to_box(self, u: jax.Array) -> jax.Array:
+    def to_box(self, u: jax.Array) -> jax.Array:
+        """The action in the env's box for pre-squash ``u``, mapped as the policy trained with it."""
         return distribution.to_box(u, self.action_low, self.action_high, self.config.action_margin)
 
     def rollout(self, env_params: Any = None, steps: int | None = None, episodes: int = 1, seed: int = 0,
