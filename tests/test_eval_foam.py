@@ -471,3 +471,56 @@ def test_a_subset_of_controllers_runs_only_those_and_the_same_episodes(evaluatio
         rows = list(csv.DictReader(handle))
     assert [float(r["u_error"]) for r in rows] == pytest.approx(
         [cell["runs"][0]["u_error"], run["u_error"]])
+
+
+@needs_openfoam
+def test_a_reference_cache_reuses_a_reference_only_for_the_same_inputs(saved_run, tmp_path):
+    cache = tmp_path / "cache"
+
+    def evaluate(name, iterations):
+        out = tmp_path / name
+        assert main(["eval-foam", str(saved_run), "--velocities", str(VELOCITY), "--step-height", "0.0127",
+                     "--mesh-scale", "0.4", "--pool", "1", "--controllers", "tutorial_defaults",
+                     "--reference-iterations", str(iterations), "--reference-cache", str(cache),
+                     "--out", str(out)]) == 0
+        report = json.loads((out / "eval.json").read_text())
+        return report["reference"]["runs"]["h"]["50"], \
+            report["results"]["tutorial_defaults"]["h"]["50"]["runs"][0]["u_error"]
+
+    first, first_error = evaluate("first", 300)
+    second, second_error = evaluate("second", 300)
+    other, other_error = evaluate("other", 320)  # another reference length: another reference
+    assert (first["cached"], second["cached"], other["cached"]) == (False, True, False)
+    assert second["final_residuals"] == first["final_residuals"] and second["iterations"] == 300
+    assert second_error == first_error and other_error != first_error and other["iterations"] == 320
+    entries = sorted(cache.glob("*.json"))
+    assert len(entries) == 2 and len(list(cache.glob("*.npz"))) == 2
+    # an entry that lost its field is a miss: the reference runs again and is stored again
+    (short,) = [e for e in entries if json.loads(e.read_text())["iterations"] == 300]
+    short.with_suffix(".npz").unlink()
+    again, again_error = evaluate("again", 300)
+    assert not again["cached"] and again_error == first_error and len(list(cache.glob("*.npz"))) == 2
+
+
+@needs_openfoam
+def test_the_reference_key_follows_the_case_files_and_not_where_they_run(tmp_path):
+    import shutil
+
+    from foam_bridge.case import TEMPLATE_DIR
+    from jaxsimrl.evaluation.foam_reference_cache import reference_key
+
+    case = tmp_path / "case"
+    shutil.copytree(TEMPLATE_DIR, case)
+    cfg = FoamEnvConfig(case_dir=str(case), mesh_scale=0.4)
+    key = reference_key(cfg, 50.0, (0.95, 0.875))
+    assert reference_key(dataclasses.replace(cfg, work_dir=str(tmp_path / "w"), step_timeout_s=7.0),
+                         50.0, (0.95, 0.875)) == key
+    (case / "100").mkdir()
+    (case / "100" / "U").write_text("earlier output")  # a time directory left by an earlier run
+    assert reference_key(cfg, 50.0, (0.95, 0.875)) == key
+    assert reference_key(cfg, 50.5, (0.95, 0.875)) != key
+    assert reference_key(cfg, 50.0, (0.95, 0.9)) != key
+    assert reference_key(dataclasses.replace(cfg, relax_k_omega=0.9), 50.0, (0.95, 0.875)) != key
+    with open(case / "system" / "fvSchemes", "a") as handle:
+        handle.write("// edited\n")
+    assert reference_key(cfg, 50.0, (0.95, 0.875)) != key

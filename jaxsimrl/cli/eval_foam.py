@@ -57,6 +57,10 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--reference-iterations", type=positive_int, metavar="N",
                         help="first run the best constant (else the defaults) for N iterations per geometry "
                         "and velocity, and report each run's U error against it (default: no reference)")
+    parser.add_argument("--reference-cache", type=Path, metavar="DIR",
+                        help="reuse the reference runs stored in DIR and store new ones there; an entry is "
+                        "keyed by everything the solver is given, so any change is a new run (default: "
+                        "run every reference)")
     add_confirm_argument(parser)
     parser.add_argument("--out", metavar="DIR", type=Path, help="output directory (default RUN_DIR/eval)")
     parser.set_defaults(func=run_eval_foam)
@@ -82,7 +86,7 @@ def run_eval_foam(args: argparse.Namespace) -> int:
                     baseline_grid=args.baseline_grid, grid_alpha_u=tuple(args.grid_alpha_u),
                     grid_alpha_p=tuple(args.grid_alpha_p), out=args.out,
                     controllers=tuple(args.controllers), reference_iterations=args.reference_iterations,
-                    confirm_alpha_u=args.confirm_alpha_u)
+                    reference_cache=args.reference_cache, confirm_alpha_u=args.confirm_alpha_u)
     _check_openfoam()
     with EvalProgress() as progress:
         try:

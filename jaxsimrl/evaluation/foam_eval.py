@@ -18,7 +18,8 @@ Controllers, all in the same run (see foam_controllers):
 With ``reference_iterations`` N, every (geometry, velocity) first gets a reference run: the best
 constant (the tutorial's defaults without one) for exactly N iterations, with no convergence test.
 Every run then reports ``u_error``, the relative L2 distance of the U field it ended with from that
-reference (foam_bridge.fields says why iterations alone can mislead).
+reference (foam_bridge.fields says why iterations alone can mislead). With ``reference_cache`` the
+references are reused from (and stored in) a directory (foam_reference_cache).
 
 Every episode's uid is a hash of (controller, geometry, velocity, sample); it seeds the episode's
 random actions, so the same command gives the same numbers, and an episode stays the same when other
@@ -86,6 +87,8 @@ class EvalSpec:
     out: Path | None = None
     controllers: tuple[str, ...] = CONTROLLERS
     reference_iterations: int | None = None
+    #: A directory of reference runs to reuse and add to (foam_reference_cache); None: run them all.
+    reference_cache: Path | None = None
     #: FoamEnvConfig.confirm_alpha_u of every run (None: the training config's own, the paper's test).
     confirm_alpha_u: float | None = None
 
@@ -332,9 +335,14 @@ class References:
     of every run's final U field against its (geometry, velocity)'s reference."""
 
     def __init__(self, spec: EvalSpec, baseline: Baseline | None) -> None:
+        from jaxsimrl.evaluation.foam_reference_cache import ReferenceCache
+
         self.iterations = spec.reference_iterations
         self.factors = baseline.factors if baseline is not None else TUTORIAL_DEFAULTS
+        self.cache = None if spec.reference_cache is None else ReferenceCache(spec.reference_cache)
         self.runs: dict[tuple[str, float], EpisodeResult] = {}
+        self.final_residuals: dict[tuple[str, float], dict[str, float]] = {}
+        self.cached: set[tuple[str, float]] = set()
         self.errors: dict[int, float | None] = {}
 
     @property
@@ -353,10 +361,43 @@ class References:
         from jaxsimrl.evaluation.foam_runner import run_episodes
 
         long_run = dataclasses.replace(without_convergence_test(cfg), max_iterations=self.iterations)
+        keys = {v: self._key(long_run, v) for v in velocities}
+        to_run = []
+        for job in self.plan([geometry], velocities):
+            entry = None if self.cache is None else self.cache.load(keys[job.velocity])
+            if entry is None:
+                to_run.append(job)
+                continue
+            result = EpisodeResult(job, entry.outcome, "", entry.iterations, 0.0, [], None, (), entry.final_u)
+            self._keep(geometry, result, entry.final_residuals)
+            self.cached.add((geometry, job.velocity))
+            progress(result)
         controller = {REFERENCE: ConstantController(REFERENCE, self.factors)}
-        for result in run_episodes(long_run, self.plan([geometry], velocities), controller, pool, progress,
-                                   fields=True):
-            self.runs[(geometry, result.job.velocity)] = result
+        for result in run_episodes(long_run, to_run, controller, pool, progress, fields=True):
+            residuals = result.trace[-1].residuals if result.trace else {}
+            self._keep(geometry, result, residuals)
+            self._store(keys[result.job.velocity], geometry, result, residuals)
+
+    def _key(self, cfg: FoamEnvConfig, velocity: float) -> str | None:
+        from jaxsimrl.evaluation.foam_reference_cache import reference_key
+
+        return None if self.cache is None else reference_key(cfg, velocity, self.factors)
+
+    def _keep(self, geometry: str, result: EpisodeResult, residuals: dict[str, float]) -> None:
+        self.runs[(geometry, result.job.velocity)] = result
+        self.final_residuals[(geometry, result.job.velocity)] = residuals
+
+    def _store(self, key: str | None, geometry: str, result: EpisodeResult, residuals: dict[str, float]
+               ) -> None:
+        """Keep a reference that ran its iterations in the cache (not one that failed on the way)."""
+        from jaxsimrl.evaluation.foam_reference_cache import CachedReference
+
+        if key is None or result.outcome != "truncated" or result.iterations != self.iterations \
+                or result.final_u is None:
+            return
+        about = {"geometry": geometry, "velocity": result.job.velocity, "factors": list(self.factors)}
+        self.cache.store(key, CachedReference(result.outcome, result.iterations, residuals, result.final_u),
+                         about)
 
     def measure(self, result: EpisodeResult) -> EpisodeResult:
         """Record the run's U error (None: no reference, or no final field); drop the field itself."""
@@ -373,11 +414,12 @@ class References:
             return None
         runs = {}
         for (geometry, velocity), result in self.runs.items():
-            last = result.trace[-1].residuals if result.trace else {}
             runs.setdefault(geometry, {})[f"{velocity:g}"] = {
                 "outcome": result.outcome, "cause": result.cause, "iterations": result.iterations,
-                "final_residuals": last, "has_field": result.final_u is not None}
+                "final_residuals": self.final_residuals[(geometry, velocity)],
+                "has_field": result.final_u is not None, "cached": (geometry, velocity) in self.cached}
         return {"iterations": self.iterations, "factors": list(self.factors), "runs": runs,
+                "cache": None if self.cache is None else str(self.cache.directory),
                 "error": "relative L2 distance of a run's final U field from its reference's, all cells "
                          "and components, cells unweighted"}
 
