@@ -507,12 +507,16 @@ def test_the_reference_key_follows_the_case_files_and_not_where_they_run(tmp_pat
     import shutil
 
     from foam_bridge.case import TEMPLATE_DIR
-    from jaxsimrl.evaluation.foam_reference_cache import reference_key
+    from jaxsimrl.evaluation.foam_reference_cache import reference_keys
+
+    def reference_key(cfg, velocity, factors):
+        return reference_keys(cfg, [velocity], factors)[velocity]
 
     case = tmp_path / "case"
     shutil.copytree(TEMPLATE_DIR, case)
     cfg = FoamEnvConfig(case_dir=str(case), mesh_scale=0.4)
     key = reference_key(cfg, 50.0, (0.95, 0.875))
+    assert reference_keys(cfg, [25.0, 50.0], (0.95, 0.875))[50.0] == key  # one velocity's key, alone or not
     assert reference_key(dataclasses.replace(cfg, work_dir=str(tmp_path / "w"), step_timeout_s=7.0),
                          50.0, (0.95, 0.875)) == key
     (case / "100").mkdir()

@@ -358,10 +358,11 @@ class References:
     def run(self, cfg: FoamEnvConfig, geometry: str, velocities: Sequence[float], pool: int,
             progress: Callable[[EpisodeResult], None]) -> None:
         from jaxsimrl.evaluation.foam_controllers import ConstantController
+        from jaxsimrl.evaluation.foam_reference_cache import reference_keys
         from jaxsimrl.evaluation.foam_runner import run_episodes
 
         long_run = dataclasses.replace(without_convergence_test(cfg), max_iterations=self.iterations)
-        keys = {v: self._key(long_run, v) for v in velocities}
+        keys = {} if self.cache is None else reference_keys(long_run, velocities, self.factors)
         to_run = []
         for job in self.plan([geometry], velocities):
             entry = None if self.cache is None else self.cache.load(keys[job.velocity])
@@ -376,12 +377,7 @@ class References:
         for result in run_episodes(long_run, to_run, controller, pool, progress, fields=True):
             residuals = result.trace[-1].residuals if result.trace else {}
             self._keep(geometry, result, residuals)
-            self._store(keys[result.job.velocity], geometry, result, residuals)
-
-    def _key(self, cfg: FoamEnvConfig, velocity: float) -> str | None:
-        from jaxsimrl.evaluation.foam_reference_cache import reference_key
-
-        return None if self.cache is None else reference_key(cfg, velocity, self.factors)
+            self._store(keys.get(result.job.velocity), geometry, result, residuals)
 
     def _keep(self, geometry: str, result: EpisodeResult, residuals: dict[str, float]) -> None:
         self.runs[(geometry, result.job.velocity)] = result

@@ -17,6 +17,7 @@ from __future__ import annotations
 import hashlib
 import io
 import json
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -37,22 +38,23 @@ class CachedReference:
     final_u: np.ndarray
 
 
-def reference_key(cfg: Any, velocity: float, factors: tuple[float, float]) -> str:
-    """The hex digest naming the reference of ``cfg`` (a FoamEnvConfig) at ``velocity``, ``factors``."""
+def reference_keys(cfg: Any, velocities: Sequence[float], factors: tuple[float, float]) -> dict[float, str]:
+    """The hex digest naming the reference of ``cfg`` (a FoamEnvConfig) and ``factors`` at each of
+    ``velocities``. The case files and foam_bridge's source are read once for all of them."""
     from foam_bridge import case as foam_case
     from foam_bridge.openfoam import find_openfoam
     from jaxsimrl.envs.foam_config import foam_config_to_json
 
     config = {k: v for k, v in foam_config_to_json(cfg).items() if k not in _NOT_IN_KEY}
     openfoam = find_openfoam(cfg.openfoam_path)
-    source = Path(cfg.case_dir) if cfg.case_dir is not None else foam_case.TEMPLATE_DIR
-    digest = hashlib.sha256(json.dumps({"config": config, "velocity": float(velocity),
-                                        "factors": [float(f) for f in factors],
+    shared = hashlib.sha256(json.dumps({"config": config, "factors": [float(f) for f in factors],
                                         "openfoam": [openfoam.path, openfoam.project_dir]},
                                        sort_keys=True).encode())
-    for root in (source, Path(foam_case.__file__).parent):
-        _hash_tree(digest, root)
-    return digest.hexdigest()
+    bridge = Path(foam_case.__file__).parent  # holds the built-in template too
+    for root in ([bridge] if cfg.case_dir is None else [Path(cfg.case_dir), bridge]):
+        _hash_tree(shared, root)
+    base = shared.hexdigest()
+    return {v: hashlib.sha256(f"{base} {float(v)!r}".encode()).hexdigest() for v in velocities}
 
 
 def _hash_tree(digest: Any, root: Path) -> None:
