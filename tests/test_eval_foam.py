@@ -263,7 +263,8 @@ BAD_INPUT = {"no_config": "not a run directory", "lorenz": "not a train-foam run
              "no_checkpoint": "no checkpoint", "velocity": "positive", "bad_csv": "not a grid-foam grid.csv",
              "no_csv": "cannot read", "twice": "must be distinct",
              "unconverged_csv": "no converged cell", "wrong_obs": "observations of size 1",
-             "controller": "invalid choice"}
+             "controller": "invalid choice", "cache_alone": "reference_cache needs reference_iterations",
+             "cache_file": "exists and is not a directory"}
 
 
 @pytest.mark.parametrize("case", list(BAD_INPUT))
@@ -287,6 +288,11 @@ def test_bad_input_is_one_line_exit_2(capsys, tmp_path, saved_run, case):
         extra = ["--baseline-grid", tmp_path / "g.csv"]
     elif case == "controller":
         extra = ["--controllers", "random", "oracle"]
+    elif case == "cache_alone":
+        extra = ["--reference-cache", tmp_path / "cache"]
+    elif case == "cache_file":
+        (tmp_path / "cache").write_text("not a directory")
+        extra = ["--reference-iterations", "100", "--reference-cache", tmp_path / "cache"]
     elif case == "no_csv":
         extra = ["--baseline-grid", tmp_path / "missing.csv"]
     elif case == "unconverged_csv":

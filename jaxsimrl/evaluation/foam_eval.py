@@ -108,6 +108,12 @@ class EvalSpec:
         if self.confirm_alpha_u is not None and not 0 < self.confirm_alpha_u < 1:
             raise ValueError(f"confirm_alpha_u must be a relaxation factor in (0, 1), "
                              f"got {self.confirm_alpha_u!r}")
+        if self.reference_cache is not None:
+            if self.reference_iterations is None:
+                raise ValueError("reference_cache needs reference_iterations (there are no references to "
+                                 "cache without it)")
+            if Path(self.reference_cache).exists() and not Path(self.reference_cache).is_dir():
+                raise ValueError(f"reference_cache {self.reference_cache}: exists and is not a directory")
         optional = ("reference_iterations",) if self.reference_iterations is not None else ()
         for name in ("samples", "pool", *optional):
             value = getattr(self, name)
