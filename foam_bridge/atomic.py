@@ -1,8 +1,12 @@
 """Atomic file writes: a reader sees either the old file or the complete new one, never a partial one.
 
 The data goes to a temporary file in the destination's directory (same file system, so the final
-``os.replace`` is an atomic rename), is flushed and fsynced, then renamed over the destination. If
-anything fails on the way, the temporary file is removed and the destination is left untouched.
+``os.replace`` is an atomic rename), is flushed and fsynced, then renamed over the destination, and the
+directory is fsynced so that the rename itself survives a power cut. If anything fails on the way, the
+temporary file is removed and the destination is left untouched.
+
+This is the project's one implementation: foam_bridge stands on its own (it never imports jaxsimrl), and
+``jaxsimrl.runs.atomic`` re-exports it.
 """
 
 from __future__ import annotations
@@ -13,15 +17,20 @@ import tempfile
 from pathlib import Path
 
 
+def file_mode() -> int:
+    """The permissions a plain ``open()`` would give a new file now (mkstemp gives 0o600)."""
+    umask = os.umask(0)
+    os.umask(umask)
+    return 0o666 & ~umask
+
+
 def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
     """Write ``data`` to ``path`` atomically (the parent directory must exist)."""
     target = Path(path)
     fd, tmp_name = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
     try:
         with os.fdopen(fd, "wb") as handle:
-            umask = os.umask(0)
-            os.umask(umask)
-            os.fchmod(handle.fileno(), 0o666 & ~umask)  # as a plain open() would (mkstemp gives 0o600)
+            os.fchmod(handle.fileno(), file_mode())
             handle.write(data)
             handle.flush()
             os.fsync(handle.fileno())
@@ -30,8 +39,23 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
         with contextlib.suppress(OSError):
             os.unlink(tmp_name)
         raise
+    _fsync_directory(target.parent)
 
 
 def atomic_write_text(path: str | os.PathLike[str], text: str, encoding: str = "utf-8") -> None:
     """Write ``text`` to ``path`` atomically."""
     atomic_write_bytes(path, text.encode(encoding))
+
+
+def _fsync_directory(directory: Path) -> None:
+    """Persist the rename itself; not every file system lets a directory be opened, so best effort."""
+    try:
+        fd = os.open(directory, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)

@@ -26,10 +26,14 @@ from jaxsimrl.runs.training import chunk_rows, interrupts_deferred
 # ---- atomic writes ---------------------------------------------------------------------------------
 def test_atomic_write_replaces_content_with_normal_permissions(tmp_path):
     target = tmp_path / "a.json"
-    atomic.atomic_write_json(target, {"x": 1})
-    atomic.atomic_write_json(target, {"x": 2})
+    previous = os.umask(0o027)  # the umask in force at the write decides, as for a plain open()
+    try:
+        atomic.atomic_write_json(target, {"x": 1})
+        atomic.atomic_write_json(target, {"x": 2})
+    finally:
+        os.umask(previous)
     assert json.loads(target.read_text()) == {"x": 2}
-    assert stat.S_IMODE(target.stat().st_mode) == atomic.FILE_MODE
+    assert stat.S_IMODE(target.stat().st_mode) == 0o640
     assert os.listdir(tmp_path) == ["a.json"]
 
 
