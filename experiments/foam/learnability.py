@@ -123,7 +123,7 @@ def neighbour_transfer(table: dict[float, dict[float, int]], best_alpha_p: float
 
 
 def draw(ax: plt.Axes, name: str, table: dict[float, dict[float, int]], best_alpha_p: float) -> None:
-    """Heatmap of iterations, velocity x alpha_p; stars on each velocity's best, a line at the constant."""
+    """Heatmap of iterations, velocity x alpha_p; each velocity's best framed, the reference starred."""
     velocities = sorted(table)
     columns = sorted({a for row in table.values() for a in row})
     grid = np.full((len(velocities), len(columns)), np.nan)
