@@ -19,9 +19,22 @@ from pathlib import Path
 
 def file_mode() -> int:
     """The permissions a plain ``open()`` would give a new file now (mkstemp gives 0o600)."""
+    return 0o666 & ~_umask()
+
+
+def _umask() -> int:
+    """The process's umask. Linux reports it in /proc; setting and restoring it instead would leave it 0
+    for a moment, and a file another thread (a checkpointer's) creates then would be world-writable."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as status:
+            for line in status:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
     umask = os.umask(0)
     os.umask(umask)
-    return 0o666 & ~umask
+    return umask
 
 
 def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
