@@ -91,14 +91,17 @@ class FoamEnvConfig:
 
     MDP:
         interval: SIMPLE iterations per env step (the paper: 100).
-        max_iterations: iteration cap; reaching it ends the episode as ``truncated``.
-        action_low, action_high: box of (alpha_u, alpha_p); actions are clipped into it.
+        max_iterations: iteration cap; reaching it ends the episode (outcome ``truncated``, terminated).
+        action_low, action_high: box of (alpha_u, alpha_p); actions are clipped into it. Default: the
+            built-in case's [0.2, 0.95]^2; for a user's case foam_bridge.user_case.case_defaults gives a
+            box its algorithm tolerates (train-foam applies it to ``--case``).
         relax_k_omega: relaxation factor of the turbulence fields: a float (fixed), or FOLLOW_ALPHA_U
             (``"alpha_u"``: the agent's momentum factor). ``None`` (default): 0.8 for the built-in case,
             the case's own factors for a user's case. Every other field keeps the case's own factor.
         convergence: field -> threshold on the solver's initial residual (vector fields: the largest
             component), as simpleFoam's own ``SIMPLE.residualControl``. Default: the paper's training
-            criterion (TRAIN_CONVERGENCE); TEST_CONVERGENCE is its test criterion.
+            criterion (TRAIN_CONVERGENCE); TEST_CONVERGENCE is its test criterion. A user's case's own
+            residualControl: foam_bridge.user_case.case_defaults (train-foam applies it to ``--case``).
         confirm_alpha_u: a convergence test that relaxation cannot move. simpleFoam normalises each
             initial residual with the relaxed matrix, whose diagonal grows as 1/alpha_u, so lowering
             alpha_u lowers the residuals the criterion reads at once, field unchanged (on 2h at 50 m/s,
@@ -128,7 +131,8 @@ class FoamEnvConfig:
         failure_penalty: reward of the step on which the solver failed (crashed, diverged, hung);
             ``None`` -> as if it had run to max_iterations: -(max_iterations - K_{t-1}) SIMPLE
             iterations, each at the episode's mean cost per iteration so far for the other rewards,
-            so that the episode's return is about minus the cost of a run to the cap.
+            so that the episode's return is about minus the cost of a run to the cap. A penalty above
+            that (nearer 0) makes failing pay better than running on to the cap.
         divergence_threshold: an initial residual above this (or NaN/Inf) ends the episode as
             ``diverged``.
         state_divergence_ratio: a state term (mean |U|^2 over the cells or over the inlet) above this

@@ -2,8 +2,10 @@
 
 MDP (Pawar & Maulik, "Solver convergence acceleration"):
 
-- action: (alpha_u, alpha_p), clipped into ``[action_low, action_high]``; alpha_u relaxes the velocity
-  equation (and k/omega unless ``relax_k_omega`` fixes them), alpha_p the pressure field.
+- action: (alpha_u, alpha_p), clipped into ``[action_low, action_high]`` (a bound's float32 value, as a
+  float32 box or policy gives it, is that bound exactly: foam_bridge.spaces.clip_to_box); alpha_u
+  relaxes the velocity equation (and k/omega unless ``relax_k_omega`` fixes them), alpha_p the
+  pressure field.
 - observation: ``(mean_inlet |U|^2 + mean_cells |U|^2) / state_scale`` (arithmetic means over the inlet
   faces and over all cells, as the paper's state; ``state_scale`` = 44.2**2 by default), then
   optionally the log10 initial residuals of the last ``residual_features`` step boundaries.
@@ -12,7 +14,10 @@ MDP (Pawar & Maulik, "Solver convergence acceleration"):
   inner iterations, the solver's CPU seconds, as the log counts them up to iteration K).
 - episode end: the solver's own ``SIMPLE.residualControl`` met (``converged``, terminated; with
   ``confirm_alpha_u`` only once a check at that relaxation confirms it, foam_bridge.confirm), the
-  ``max_iterations`` cap (``truncated``), or a failure (terminated, reward :func:`failure_reward`):
+  ``max_iterations`` cap (outcome ``truncated``, but *terminated*: the cap is the task's budget, not a
+  time limit, so the learner does not bootstrap past it and a capped run costs exactly its K, as much
+  as a failure's default penalty charges; bootstrapping there would score reaching the cap below
+  crashing), or a failure (terminated, reward :func:`failure_reward`):
   ``crashed`` (solver died, broken case), ``diverged`` (NaN/Inf or an initial residual above
   ``divergence_threshold``, or a state term above ``state_divergence_ratio`` x the inlet's |U|^2),
   ``hung`` (the step watchdog fired).
@@ -60,7 +65,7 @@ from foam_bridge.confirm import confirm, meets
 from foam_bridge.logparse import LogParser, field_residual
 from foam_bridge.openfoam import find_openfoam
 from foam_bridge.solver import DIVERGED, EXITED, HUNG, MISSED, PAUSED, FoamSolver
-from foam_bridge.spaces import BoxSpec, Step
+from foam_bridge.spaces import BoxSpec, Step, clip_to_box
 
 #: Every value of ``info["outcome"]``.
 OUTCOMES = ("running", "converged", "truncated", "crashed", "diverged", "hung")
@@ -95,7 +100,9 @@ class FoamCaseEnv:
     ``step(action) -> (obs, reward, terminated, truncated, info)``; ``info`` has "iterations" (K),
     "residuals" ({field: latest initial residual}), "outcome" (one of OUTCOMES), "cause" (failure text
     or ""), "inlet_velocity", and "episode" (the episode record) on the step that ended the episode.
-    Stepping a finished episode raises ``RuntimeError`` (no auto-reset here).
+    ``terminated`` is True on every episode end, the ``max_iterations`` cap included; ``truncated`` is
+    always False (the env has no time limit). Stepping a finished episode raises ``RuntimeError`` (no
+    auto-reset here).
 
     ``close()`` kills the solver's whole process group and removes the case (unless keep_cases); the
     env is also a context manager that closes itself.
@@ -168,7 +175,7 @@ class FoamCaseEnv:
         """Run ``interval`` SIMPLE iterations with the given factors; see the class docstring."""
         if self._done:
             raise RuntimeError("step() on a finished episode: call reset() first")
-        alpha = np.clip(_two_factors(action), self.cfg.action_low, self.cfg.action_high)
+        alpha = clip_to_box(_two_factors(action), self.cfg.action_low, self.cfg.action_high)
         self._episode["actions"].append([float(alpha[0]), float(alpha[1])])
         text = foam_case.relaxation_text(self.cfg, alpha[0], alpha[1], self.case_info.flat_relaxation)
         event = self._advance(text)
@@ -192,8 +199,8 @@ class FoamCaseEnv:
         if outcome != "running":
             self._done = True
             info["episode"] = self._episode_record(outcome, cause, residuals)
-        terminated = outcome == "converged" or outcome in FAILURES
-        return self._obs.copy(), reward, terminated, outcome == "truncated", info
+        # every end is terminated, the cap included (module docstring); no time limit truncates
+        return self._obs.copy(), reward, outcome != "running", False, info
 
     def __enter__(self) -> FoamCaseEnv:
         return self

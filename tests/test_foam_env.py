@@ -12,6 +12,7 @@ import shutil
 import signal
 import time
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -20,10 +21,12 @@ from foamlib import FoamFile
 
 from foam_bridge import case as foam_case
 from foam_bridge.config import TEST_CONVERGENCE, U_REF, FoamEnvConfig
-from foam_bridge.env import FoamCaseEnv, FoamEnv
+from foam_bridge.env import FoamCaseEnv, FoamEnv, action_spec, observation_spec
 from foam_bridge.errors import CaseError
 from foam_bridge.logparse import LogParser
-from foam_bridge.solver import run_to_end
+from foam_bridge.solver import FoamSolver, run_to_end
+from jaxsimrl.agents.ppo.distribution import to_box
+from jaxsimrl.envs.host import HostVecEnv
 
 pytestmark = OPENFOAM
 
@@ -315,3 +318,33 @@ def test_protocol_form_matches_the_case_env(tmp_path: Path) -> None:
     assert obs[0] == pytest.approx(40.0**2 / U_REF**2)
     assert step.reward == -25.0 and not step.terminated and step.state.iterations == 25
     assert env.action_space(params).shape == (2,) and env.observation_space(params).shape == (1,)
+
+
+def test_an_action_on_the_float32_boxs_edge_reaches_fvsolution_as_the_exact_bound(tmp_path: Path,
+                                                                                   monkeypatch) -> None:
+    """The trainer's box is float32 (float32(0.95) = 0.949999988); with an action margin the policy's
+    clipped action is that value exactly. What the bridge feeds fvSolution must be 0.95 itself."""
+    cfg = _cfg(tmp_path, interval=10)
+    edge = np.array([cfg.action_high[0], cfg.action_low[1]], np.float32).astype(np.float64)
+    assert edge.tolist() != [0.95, 0.2]
+    fed: list[bytes] = []
+    real_release = FoamSolver.release
+
+    def recording_release(solver: FoamSolver, text: bytes) -> None:
+        fed.append(text)
+        real_release(solver, text)
+
+    monkeypatch.setattr(FoamSolver, "release", recording_release)
+    with FoamCaseEnv(cfg) as env:
+        env.reset(seed=0)
+        _, _, _, _, info = env.step(edge)
+        assert info["outcome"] == "running"
+        env.step(edge)
+    factors = FoamFile.loads(fed[-1])["relaxationFactors"]  # the FIFO fvSolution #includes
+    assert (factors["equations"]["U"], factors["fields"]["p"]) == (0.95, 0.2)
+    assert all(text == fed[0] for text in fed)
+    # that edge is exactly what the trainer's policy sends (after the solver ran: JAX threads, then no fork)
+    batch = SimpleNamespace(num_envs=1, observation_spec=observation_spec(cfg), action_spec=action_spec(cfg))
+    box = HostVecEnv(batch).action_space()  # the box the trainer acts in
+    sent = to_box(np.array([50.0, -50.0], np.float32), box.low, box.high, 0.1)
+    assert np.asarray(sent, np.float64).tolist() == edge.tolist()

@@ -9,12 +9,16 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import jax.numpy as jnp
+import numpy as np
 import pytest
 from foam_marks import needs_openfoam
 
+from foam_bridge import case as foam_case
 from foam_bridge.config import U_REF, FoamEnvConfig, cost_per_iteration, failure_reward
 from foam_bridge.env import FoamCaseEnv
 from foam_bridge.logparse import LogParser
+from jaxsimrl.agents.ppo.losses import compute_gae
 from jaxsimrl.evaluation.foam_cost import read_solver_cost
 
 BEST = (0.95, 0.95)
@@ -102,3 +106,53 @@ def test_a_diverged_episode_with_the_linear_reward_costs_more_than_it_ran(tmp_pa
     # the last step's penalty is the rest of the cap at the episode's cost per iteration
     assert -rewards[-1] == pytest.approx((1000 - before) * rate, rel=0.05)
     assert -sum(rewards) > record["linear_iterations"]  # failing costs more than the run did
+
+
+Episode = tuple[list[float], list[bool], list[bool], str]
+
+
+def _flags(tmp_path: Path, name: str, crash_at: int | None) -> Episode:
+    """(rewards, terminated, truncated, outcome) of a real episode of 25-iteration steps capped at 100 (the
+    coarse mesh needs ~180 to converge); ``crash_at``: the solver dies there (the case is broken under
+    it a step before: its fvSolution read at ``crash_at`` fails)."""
+    cfg = FoamEnvConfig(mesh_scale=0.4, interval=25, max_iterations=100, work_dir=tmp_path / name)
+    rewards, terminated, truncated = [], [], []
+    with FoamCaseEnv(cfg) as env:
+        env.reset(options={"inlet_velocity": U_REF})
+        while True:
+            if crash_at is not None and (len(rewards) + 1) * 25 == crash_at:
+                foam_case.relaxation_fifo(env.case_dir, crash_at).unlink()
+            _, reward, term, trunc, info = env.step(BEST)
+            rewards.append(reward)
+            terminated.append(term)
+            truncated.append(trunc)
+            if term or trunc:
+                return rewards, terminated, truncated, info["outcome"]
+
+
+@needs_openfoam
+def test_a_capped_runs_learning_target_is_never_below_a_failed_runs(tmp_path: Path) -> None:
+    """The cap is the task's budget: a capped episode is terminated (no bootstrap), so whatever the critic
+    says, the return target the learner trains on (GAE with lambda 1) is at least a failure's."""
+    capped = _flags(tmp_path, "capped", None)
+    failed = _flags(tmp_path, "failed", crash_at=50)
+    assert (capped[3], failed[3]) == ("truncated", "crashed")
+    assert sum(capped[0]) == sum(failed[0]) == -100  # both cost the whole budget
+    for gamma in (0.99, 1.0):
+        for critic in (-1e4, -100.0, 0.0):  # any critic, however pessimistic
+            targets = [_return_targets(rewards, terminated, truncated, critic, gamma)
+                       for rewards, terminated, truncated, _ in (capped, failed)]
+            steps = len(failed[0])
+            assert np.all(targets[0][:steps] >= targets[1]), (gamma, critic, targets)
+    assert capped[1][-1] and failed[1][-1] and not any(capped[2] + failed[2])  # the cap: no time limit
+
+
+def _return_targets(rewards: list[float], terminated: list[bool], truncated: list[bool], critic: float,
+                    gamma: float) -> np.ndarray:
+    """The learner's value targets (losses.compute_gae, lambda 1) of one episode, V = ``critic``
+    everywhere."""
+    column = lambda values, dtype=jnp.float32: jnp.asarray(values, dtype)[:, None]  # noqa: E731
+    values = column([critic] * len(rewards))
+    _, targets = compute_gae(column(rewards), values, column(terminated, bool), column(truncated, bool),
+                             values, jnp.full((1,), critic, jnp.float32), gamma, 1.0)
+    return np.asarray(targets)[:, 0]
