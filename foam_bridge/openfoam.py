@@ -2,7 +2,9 @@
 
 The solver never inherits the caller's shell: it gets ``PATH`` (the configured one), ``WM_PROJECT_DIR``
 (Debian's v1912 needs it, or blockMesh fails with "Could not find mandatory etc entry 'controlDict'"),
-``HOME`` (the case directory, so that no user ``~/.OpenFOAM`` setting leaks in), ``PWD`` and ``LANG``.
+``HOME`` (the case directory, so that no user ``~/.OpenFOAM`` setting leaks in), ``PWD`` and ``LANG``,
+and the bridge's mark ``BRIDGE_MARK`` (the case directory): the reaper (foam_bridge.backends.reaper)
+kills only processes that carry it, never a user's shell or paraFoam in a kept case.
 """
 
 from __future__ import annotations
@@ -18,6 +20,8 @@ INSTALL_HINT = (
     "install OpenFOAM v1912+ (Debian/Ubuntu: `sudo apt-get install -y openfoam`) or source your "
     "installation's etc/bashrc so that simpleFoam and blockMesh are on PATH"
 )
+#: Environment variable marking every process the bridge starts (its value: the case directory, resolved).
+BRIDGE_MARK = "FOAM_BRIDGE_CASE"
 #: Where WM_PROJECT_DIR may live when the caller's environment does not set it.
 PROJECT_DIR_CANDIDATES = ("/usr/share/openfoam", "/usr/lib/openfoam/openfoam", "/opt/openfoam")
 
@@ -45,6 +49,7 @@ class OpenFOAM:
             "PWD": str(case_dir),
             "LANG": "C",
             "LC_ALL": "C",
+            BRIDGE_MARK: os.path.realpath(case_dir),
         }
 
 

@@ -6,6 +6,7 @@ MESH_SCALE_USABLE_MIN, 3,276 cells) with a low iteration cap, so episodes end wi
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import os
 import signal
@@ -20,7 +21,9 @@ from foam_bridge.backends import WORKER_DIED, env_dir, validate_pool
 from foam_bridge.backends.reaper import kill_processes_under, processes_under
 from foam_bridge.batched import BatchedFoamEnv, failure_reward
 from foam_bridge.config import FoamEnvConfig
+from foam_bridge.env import FoamCaseEnv
 from foam_bridge.errors import OpenFOAMNotFoundError
+from foam_bridge.openfoam import OpenFOAM
 
 # Smallest usable mesh, 300-iteration cap: an episode is at most 3 steps of 100 iterations.
 COARSE = FoamEnvConfig(mesh_scale=0.4, simple_variant="SIMPLEC", relax_k_omega=0.8, max_iterations=300,
@@ -50,27 +53,55 @@ def test_failure_reward_is_the_rest_of_the_cap_or_the_penalty():
     assert failure_reward(FoamEnvConfig(max_iterations=4000, failure_penalty=-2000.0), 1269) == -2000.0
 
 
-def test_reaper_kills_the_process_group_under_a_directory(tmp_path):
+def test_reaper_kills_the_bridges_process_group_and_nothing_else_under_a_directory(tmp_path):
     case = tmp_path / "env_0"
-    case.mkdir()
-    # A stand-in for an orphaned solver: its own session, cwd in the case, with a child in its group.
-    proc = subprocess.Popen(["sh", "-c", "sleep 60 & sleep 60"], cwd=case, start_new_session=True)
+    (case / "episode").mkdir(parents=True)
+    # A stand-in for an orphaned solver: the bridge's environment, its own session, a child in its group.
+    bridge_env = OpenFOAM(os.environ["PATH"], "").environment(case / "episode")
+    proc = subprocess.Popen(["sh", "-c", "sleep 60 & sleep 60"], cwd=case, env=bridge_env,
+                            start_new_session=True)
+    # The user's: a shell cd-ed into the kept case (its own group, with a child), and one elsewhere.
+    user = subprocess.Popen(["sh", "-c", "sleep 60 & sleep 60"], cwd=case / "episode", start_new_session=True)
     bystander = subprocess.Popen(["sleep", "60"], cwd=tmp_path, start_new_session=True)
     try:
         time.sleep(0.2)
         assert proc.pid in processes_under(case)
-        assert bystander.pid not in processes_under(case)
+        assert user.pid not in processes_under(case) and bystander.pid not in processes_under(case)
         assert kill_processes_under(case) >= 1
         assert proc.wait(timeout=5) == -signal.SIGKILL
         deadline = time.monotonic() + 5
         while processes_under(case) and time.monotonic() < deadline:  # the backgrounded child too
             time.sleep(0.05)
         assert processes_under(case) == []
-        assert bystander.poll() is None
+        assert user.poll() is None and bystander.poll() is None
+        os.killpg(user.pid, 0)  # the user's whole group lives (ProcessLookupError otherwise)
     finally:
-        for p in (proc, bystander):
-            p.kill()
+        for p in (proc, user, bystander):
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(p.pid, signal.SIGKILL)
             p.wait()
+
+
+@needs_openfoam
+def test_reaper_kills_a_bridge_started_solver_and_spares_a_user_in_its_case(tmp_path):
+    with FoamCaseEnv(dataclasses.replace(COARSE, interval=10, work_dir=tmp_path)) as env:
+        env.reset(seed=0)
+        env.step(SAFE_ACTION)  # the solver now waits at its pause after iteration 10
+        solver = env.solver_pgid
+        user = subprocess.Popen(["sleep", "60"], cwd=env.case_dir, start_new_session=True)
+        try:
+            assert processes_under(env.root) and user.pid not in processes_under(env.root)
+            kill_processes_under(env.root)
+            deadline = time.monotonic() + 5
+            while processes_under(env.root) and time.monotonic() < deadline:
+                time.sleep(0.05)
+            assert processes_under(env.root) == [] and user.poll() is None
+            assert env.step(SAFE_ACTION)[4]["outcome"] == "crashed"  # its solver was killed
+            with pytest.raises(ProcessLookupError):
+                os.killpg(solver, 0)
+        finally:
+            user.kill()
+            user.wait()
 
 
 def test_missing_openfoam_or_case_fails_at_construction(tmp_path):
@@ -158,8 +189,15 @@ def test_killed_worker_ends_only_its_episode_and_is_replaced(tmp_path):
         victim = env.worker_pids()[0]
         orphans = processes_under(env_dir(tmp_path, 0))
         assert orphans, "env 0 should have a paused solver"
+        # a user's shell in the running case, which the bridge did not start: the replacement spares it
+        user = subprocess.Popen(["sleep", "60"], cwd=env_dir(tmp_path, 0) / "episode", start_new_session=True)
         os.kill(victim, signal.SIGKILL)
-        obs, reward, terminated, truncated, infos = env.step(actions)
+        try:
+            obs, reward, terminated, truncated, infos = env.step(actions)
+            assert user.poll() is None
+        finally:
+            user.kill()
+            user.wait()
 
         assert terminated.tolist() == [True, False] and truncated.tolist() == [False, False]
         assert infos["final_info"]["outcome"][0] == "crashed"
