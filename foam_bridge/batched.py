@@ -18,10 +18,16 @@ streams) over to a new batch, e.g. across a training run's resume.
 
 ``step()`` never raises for a solver or worker fault (only for bad actions): a solver that crashed,
 diverged or hung ends its episode with that outcome; a dead or hung worker ends the episodes of its
-envs with outcome "crashed", cause "worker died" and the config's failure penalty, and is replaced;
+envs with outcome "crashed", cause "worker died" (a Ray node that died: "node lost: IP/NODE") and the
+config's failure penalty, and is replaced (where there is no room for a replacement, its envs move to
+the other workers: ``backend.workers()``, ``backend.lost``; none left: PoolLostError);
 an auto-reset that fails (however many workers die, or the case breaks) leaves the env waiting for a
 reset, retried before its next step; while that fails, each step of that env is a failed episode of
-0 iterations with cause "reset failed: ...". The other envs go on in every case. (``reset()`` itself
+0 iterations with cause "reset failed: ...". The step whose retry succeeds does not apply the env's
+action (it was chosen from the ended episode's last observation, ``obs[i]`` after the failed reset):
+it is a non-transition, reward 0, ``truncated`` (the learner bootstraps from ``infos["final_obs"][i]``,
+that last observation) with no ``final_info``, and ``obs[i]`` is the new episode's first observation,
+so its first action is chosen from it. The other envs go on in every case. (``reset()`` itself
 raises when an env cannot start at all: a broken case or setup is the caller's to fix.)
 """
 
@@ -73,6 +79,8 @@ class _Tally:
     started: float = field(default_factory=time.monotonic)
     #: Why the env has no running episode (its auto-reset failed); "" while it has one.
     reset_failure: str = ""
+    #: Where the episode runs (Backend.node_of at its reset): its record's "node".
+    node: str = ""
 
 
 class BatchedFoamEnv:
@@ -162,16 +170,20 @@ class BatchedFoamEnv:
         obs = np.asarray(obs, np.float32)
         velocity = float(info.get("inlet_velocity", np.nan))
         self._tallies[env_id] = _Tally(obs, seed=seed, inlet_velocity=velocity,
-                                       residuals=dict(info.get("residuals", {})))
+                                       residuals=dict(info.get("residuals", {})),
+                                       node=self.backend.node_of(env_id))
         return obs, info
 
-    def _retry_resets(self) -> dict[int, str]:
-        """Reset the envs whose auto-reset failed; env -> cause for those that fail again."""
+    def _retry_resets(self) -> tuple[dict[int, tuple], dict[int, str]]:
+        """Reset the envs whose auto-reset failed. Returns (env -> (the ended episode's last observation,
+        the reset info) for those that have an episode now, env -> cause for those that fail again)."""
         waiting = [i for i, tally in enumerate(self._tallies) if tally.reset_failure]
         if not waiting:
-            return {}
-        _, failures = self._reset_envs(waiting)
-        return {i: _reset_cause(reply) for i, reply in failures.items()}
+            return {}, {}
+        stale = {i: self._tallies[i].obs for i in waiting}
+        results, failures = self._reset_envs(waiting)
+        return ({i: (stale[i], info) for i, (_, info) in results.items()},
+                {i: _reset_cause(reply) for i, reply in failures.items()})
 
     # ----- step --------------------------------------------------------------------------------
     def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
@@ -181,18 +193,23 @@ class BatchedFoamEnv:
             raise ValueError(f"actions: expected shape ({self.num_envs}, 2), got {actions.shape}")
         if not np.isfinite(actions).all():  # an agent bug, not a solver failure: refuse, as FoamCaseEnv does
             raise ValueError(f"actions: expected finite (alpha_u, alpha_p), got {actions.tolist()}")
-        unstarted = self._retry_resets()
-        runnable = [i for i in range(self.num_envs) if i not in unstarted]
+        restarted, unstarted = self._retry_resets()
+        runnable = [i for i in range(self.num_envs) if i not in unstarted and i not in restarted]
         replies = self.backend.run([Request(i, "step", {"action": actions[i]}) for i in runnable])
         results = {reply.env_id: self._step_result(reply, actions[reply.env_id]) for reply in replies}
         for i, cause in unstarted.items():  # no episode to step: a failed one of 0 iterations
             self._tallies[i] = _Tally(self._tallies[i].obs)
             results[i] = self._failed_step(self._tallies[i], actions[i], cause)
+        for i, (stale, info) in restarted.items():  # its action was chosen from ``stale``: not applied
+            results[i] = (stale, 0.0, False, True, info)
         rewards = np.array([results[i][1] for i in range(self.num_envs)], np.float64)
         terminated = np.array([results[i][2] for i in range(self.num_envs)], bool)
         truncated = np.array([results[i][3] for i in range(self.num_envs)], bool)
         step_infos = [results[i][4] for i in range(self.num_envs)]
-        infos = self._autoreset(terminated | truncated, step_infos)  # before reading obs: resets replace them
+        ended = (terminated | truncated) & ~np.isin(np.arange(self.num_envs), list(restarted))
+        infos = self._autoreset(ended, step_infos)  # before reading obs: resets replace them
+        for i, (stale, _) in restarted.items():  # no episode ended: a final observation, no final info
+            infos = self._batcher.add(infos, {"final_obs": stale}, i)
         return self._observations(), rewards, terminated, truncated, infos
 
     def _step_result(self, reply: Reply, action: np.ndarray) -> tuple:
@@ -205,7 +222,8 @@ class BatchedFoamEnv:
             tally.residuals = dict(info.get("residuals", tally.residuals))
             tally.episode_return += float(reward)
             return tally.obs, float(reward), bool(term), bool(trunc), info
-        cause = WORKER_DIED if reply.worker_died else f"worker error: {reply.error} ({reply.where})"
+        cause = ((reply.error or WORKER_DIED) if reply.worker_died
+                 else f"worker error: {reply.error} ({reply.where})")
         return self._failed_step(tally, action, cause)
 
     def _failed_step(self, tally: _Tally, action: np.ndarray, cause: str) -> tuple:
@@ -222,6 +240,7 @@ class BatchedFoamEnv:
             "outcome": "crashed", "cause": cause, "iterations": tally.iterations,
             "return": tally.episode_return, "actions": list(tally.actions), "seed": tally.seed,
             "inlet_velocity": tally.inlet_velocity, "wall_time_s": time.monotonic() - tally.started,
+            "node": tally.node,
         }
         return {"iterations": tally.iterations, "residuals": dict(tally.residuals), "outcome": "crashed",
                 "cause": cause, "inlet_velocity": tally.inlet_velocity, "episode": record}
@@ -230,6 +249,8 @@ class BatchedFoamEnv:
         infos: dict[str, Any] = {}
         finished = [int(i) for i in np.flatnonzero(done)]
         for i in finished:
+            if isinstance(step_infos[i].get("episode"), dict):  # the env's own record: say where it ran
+                step_infos[i]["episode"].setdefault("node", self._tallies[i].node)
             final = {"final_obs": self._tallies[i].obs, "final_info": step_infos[i]}
             infos = self._batcher.add(infos, final, i)
         results, failures = self._reset_envs(finished) if finished else ({}, {})
@@ -324,7 +345,7 @@ class BatchedFoamEnv:
 
 
 def _reset_cause(reply: Reply) -> str:
-    return f"reset failed: {WORKER_DIED if reply.worker_died else reply.error}"
+    return f"reset failed: {(reply.error or WORKER_DIED) if reply.worker_died else reply.error}"
 
 
 def _reset_error(reply: Reply) -> Exception:

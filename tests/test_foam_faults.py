@@ -33,6 +33,7 @@ from foam_bridge.env import FoamCaseEnv
 from foam_bridge.logparse import LogParser
 from foam_bridge.openfoam import OpenFOAM
 from foam_bridge.solver import EXITED, HUNG, MISSED, PAUSED, FoamSolver
+from jaxsimrl.envs.host import HostVecEnv
 
 COARSE = FoamEnvConfig(mesh_scale=0.4, interval=10, max_iterations=300, step_timeout_s=60.0)
 ACTION = (0.9, 0.5)
@@ -266,7 +267,7 @@ def _dying_start(backend, worker: int) -> None:
 
 
 @needs_openfoam
-def test_worker_deaths_in_a_step_and_its_auto_reset_do_not_raise(tmp_path, monkeypatch):
+def test_failed_auto_resets_never_raise_nor_misplace_an_action(tmp_path, monkeypatch):
     actions = np.tile(ACTION, (2, 1))
     with BatchedFoamEnv(COARSE, 2, pool=2, work_dir=tmp_path, seed=4) as env:
         env.reset()
@@ -281,10 +282,27 @@ def test_worker_deaths_in_a_step_and_its_auto_reset_do_not_raise(tmp_path, monke
         obs, reward, terminated, truncated, infos = env.step(actions)
         assert terminated[0] and infos["final_info"]["cause"][0].startswith("reset failed: worker died")
         assert reward[0] == -COARSE.max_iterations and infos["final_info"]["iterations"][0] == 0
-        monkeypatch.undo()  # workers start again: env 0 is reset before its next step and runs
-        obs, reward, terminated, truncated, infos = env.step(actions)
+        monkeypatch.undo()  # workers start again: env 0 is reset before its next step ...
+        _the_retried_reset_is_a_non_transition(env, stale=obs[0])
+        obs, reward, terminated, truncated, infos = env.step(actions)  # its first action, chosen from obs[0]
         assert infos["outcome"].tolist() == ["running", "running"]
-        assert infos["iterations"].tolist() == [10, 40] and reward.tolist() == [-10.0, -10.0]
+        assert infos["iterations"].tolist() == [10, 50] and reward.tolist() == [-10.0, -10.0]
+        assert env.snapshot()[0]["actions"] == [list(ACTION)]
+
+
+def _the_retried_reset_is_a_non_transition(env: BatchedFoamEnv, stale: np.ndarray) -> None:
+    """... but the action its policy chose from ``stale`` (the ended episode's last observation) is not
+    applied: what the trainer stores (HostVecEnv) is reward 0, truncated (bootstrapped from ``stale``),
+    and no episode; the next observation is the new episode's first."""
+    episodes: list[int] = []
+    host = HostVecEnv(env, on_episode=lambda i, info: episodes.append(i))
+    out = host._host_step(np.zeros(2, np.int32), np.array([(0.3, 0.3), ACTION]))
+    assert host.error is None and episodes == [] and out.state.tolist() == [0, 0]
+    assert (out.reward[0], out.terminated[0], out.truncated[0]) == (0.0, False, True)
+    np.testing.assert_array_equal(out.final_obs[0], stale)
+    # the new episode's first observation: the internal field at rest, so the state is the inlet's |U|^2
+    assert out.obs[0][0] == pytest.approx(env._tallies[0].inlet_velocity ** 2 / COARSE.state_scale, rel=1e-3)
+    assert env.iterations().tolist() == [0, 40] and env.snapshot()[0]["actions"] == []
 
 
 DRIVER = """

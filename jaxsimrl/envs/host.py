@@ -6,7 +6,8 @@ batch, with fixed-shape, fixed-dtype results; nothing is vmapped and no ``lax.co
 refuses to vmap an ordered callback and would serialise an unordered one env by env). The host batch
 fans the actions out to its workers and auto-resets finished envs itself (gymnasium's SAME_STEP
 mode: ``infos["final_obs"]`` holds the pre-reset observation), so infos and episode records stay on
-the host: every ended episode is handed to ``on_episode(env_id, final_info)``.
+the host: every ended episode is handed to ``on_episode(env_id, final_info)``. A done env without a
+``final_info`` (BatchedFoamEnv's non-transition after a failed auto-reset) ended no episode.
 
 The callback never raises: solver faults are already outcomes of the batch (an ended episode with a
 cause). Anything else that goes wrong on the host (a bug, a broken pool) is caught and kept in
@@ -45,6 +46,15 @@ def env_info(infos: dict[str, Any], i: int) -> dict[str, Any]:
     """Env ``i``'s entries of gymnasium-batched infos (nested dicts are batched key by key)."""
     return {key: env_info(value, i) if isinstance(value, dict) else value[i]
             for key, value in infos.items() if not key.startswith("_")}
+
+
+def _ended_episodes(infos: dict[str, Any], done: np.ndarray) -> np.ndarray:
+    """The done envs that ended an episode: those with a final info. A done env without one (a
+    non-transition after a failed auto-reset) ended none. Batches without gymnasium's masks ("_final_obs",
+    "_final_info"): every done env."""
+    if "_final_obs" not in infos:
+        return done
+    return done & np.asarray(infos.get("_final_info", False), bool)
 
 
 def _float32_box(spec: Any) -> BoxSpec:
@@ -130,12 +140,14 @@ class HostVecEnv:
         obs, reward, terminated, truncated, infos = self.batch.step(actions)
         obs = self._obs(obs)
         done = np.asarray(terminated, bool) | np.asarray(truncated, bool)
+        ended = _ended_episodes(infos, done)
         final_obs = obs.copy()
         for i in np.flatnonzero(done):
             final_obs[i] = np.asarray(infos["final_obs"][i], np.float32)
+        for i in np.flatnonzero(ended):
             self.on_episode(int(i), env_info(infos["final_info"], int(i)))
         return VecStep(obs, final_obs, np.asarray(reward, np.float32), np.asarray(terminated, bool),
-                       np.asarray(truncated, bool), (episodes + done).astype(np.int32))
+                       np.asarray(truncated, bool), (episodes + ended).astype(np.int32))
 
     def _obs(self, obs: Any) -> np.ndarray:
         obs = np.asarray(obs, np.float32)
