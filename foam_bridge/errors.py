@@ -21,3 +21,11 @@ class SolverFailure(RuntimeError):
         super().__init__(cause)
         self.outcome = outcome
         self.cause = cause
+
+
+class ClusterError(ValueError):
+    """A Ray cluster that cannot be reached, or that cannot host the pool's workers."""
+
+
+class PoolLostError(RuntimeError):
+    """Every worker of a pool is lost (e.g. every node of a Ray cluster died) and none can be started."""

@@ -1,6 +1,7 @@
 """Where the envs of a BatchedFoamEnv run: a local process pool ("local") or Ray actors ("ray").
 
-Both implement ``base.Backend``: ``run(requests) -> replies``, ``worker_pid(env_id)``, ``close()``.
+Both implement ``base.Backend``: ``run(requests) -> replies``, ``worker_pid(env_id)``, ``node_of(env_id)``,
+``close()``.
 """
 
 from __future__ import annotations

@@ -1,13 +1,17 @@
 """What every backend shares: envs pinned to workers, batches in parallel, dead workers replaced.
 
 A backend runs ``Request`` s (see ``worker``) on ``pool`` workers; env ``i`` always lives on worker
-``i % pool``. ``run`` sends each worker its share of a batch at once, so workers compute in parallel,
-then gathers the replies in request order. A worker that dies (or does not answer within the batch
-deadline, in which case it is killed) answers every request of the batch with
-``Reply(ok=False, worker_died=True, error="worker died")`` and is replaced by a fresh one; its envs
-are rebuilt on their next request. The other workers are not touched. ``run`` does not raise for a
-worker fault, not even when a replacement cannot be started (the worker then counts as dead again on
-the next batch).
+``i % pool`` (until a worker is lost, see below). ``run`` sends each worker its share of a batch at
+once, so workers compute in parallel, then gathers the replies in request order. A worker that dies
+(or does not answer within the batch deadline, in which case it is killed) answers every request of
+the batch with ``Reply(ok=False, worker_died=True, error=cause)`` (cause "worker died", or for a Ray
+actor whose node died "node lost: ...") and is replaced by a fresh one; its envs are rebuilt on their
+next request. The other workers are not touched. A replacement that cannot be started for lack of
+room (``NoRoomError``: a cluster that lost a node) loses the worker for good: its envs move to the
+surviving workers (the fewest envs first), the pool goes on smaller, and the loss is logged (one
+warning line) and kept in ``lost``. ``run`` does not raise for a worker fault, except
+``PoolLostError`` when no worker is left at all; a replacement that fails otherwise counts as a dead
+worker again on the next batch.
 
 Every batch carries a sequence number and its replies carry it back: a batch whose call was
 interrupted (Ctrl-C, an exception in the caller between send and receive) leaves its replies in the
@@ -16,14 +20,17 @@ worker's channel, and the next batch drops them instead of taking them for its o
 
 from __future__ import annotations
 
-import contextlib
+import logging
 import os
+import socket
 from abc import ABC, abstractmethod
 from typing import Any
 
 from foam_bridge.backends.worker import Reply, Request
+from foam_bridge.errors import PoolLostError
 
 WORKER_DIED = "worker died"
+log = logging.getLogger("foam_bridge")
 # Seconds allowed, on top of the env's own step watchdog, for case generation (blockMesh) and start-up.
 RESET_ALLOWANCE_S = 300.0
 
@@ -48,10 +55,20 @@ def batch_deadline_s(cfg: Any, requests: list[Request]) -> float:
     return sum(2 * step_s + (RESET_ALLOWANCE_S if r.method == "reset" else 30.0) for r in requests)
 
 
+def start_deadline_s(cfg: Any) -> float:
+    """How long starting a worker may take (a Ray actor waits for a free CPU): the step watchdog, so
+    losing capacity is noticed within the watchdog's time; at least 30 s for a slow process start."""
+    return max(float(getattr(cfg, "step_timeout_s", 120.0)), 30.0)
+
+
 def close_deadline_s(cfg: Any, envs: int) -> float:
     """How long ``close`` waits for a worker with ``envs`` envs: long enough for a step it may still be
     running (an interrupted batch) to end by its own watchdog, and for its envs to close."""
     return batch_deadline_s(cfg, [Request(0, "step", {})] * envs) + 30.0
+
+
+class NoRoomError(RuntimeError):
+    """A worker cannot be started because the pool has nowhere to run it (see the module docstring)."""
 
 
 class Backend(ABC):
@@ -65,10 +82,25 @@ class Backend(ABC):
         self.num_envs = num_envs
         self.pool = pool
         self._seq = 0
+        self._home = [env_id % pool for env_id in range(num_envs)]  # env -> worker
+        #: One line per worker lost for good (its envs moved to the others).
+        self.lost: list[str] = []
 
     def worker_of(self, env_id: int) -> int:
         """Index of the worker that hosts env ``env_id``."""
-        return env_id % self.pool
+        return self._home[env_id]
+
+    def envs_of(self, worker: int) -> list[int]:
+        """The envs worker ``worker`` hosts (none once it is lost)."""
+        return [env_id for env_id, home in enumerate(self._home) if home == worker]
+
+    def workers(self) -> int:
+        """How many workers the pool has now (``pool`` less the lost ones)."""
+        return len(set(self._home))
+
+    def node_of(self, env_id: int) -> str:
+        """Where env ``env_id`` runs now, as episodes.csv records it (this machine's host name)."""
+        return socket.gethostname()
 
     def run(self, requests: list[Request]) -> list[Reply]:
         """Run a batch (at most one request per env is sensible); replies come back in request order."""
@@ -83,13 +115,38 @@ class Backend(ABC):
             batch = [requests[p] for p in positions]
             answers = self._receive(worker, batch, sent[worker], batch_deadline_s(self.cfg, batch))
             if answers is None:
-                with contextlib.suppress(Exception):  # a failed start shows as a dead worker next time
-                    self._replace(worker)
-                answers = [Reply(r.env_id, False, error=WORKER_DIED, worker_died=True, seq=r.seq)
-                           for r in batch]
+                cause = self._death_cause(worker)
+                self._recover(worker, cause)
+                answers = [Reply(r.env_id, False, error=cause, worker_died=True, seq=r.seq) for r in batch]
             for position, answer in zip(positions, answers, strict=True):
                 replies[position] = answer
         return replies  # type: ignore[return-value]
+
+    def _recover(self, worker: int, cause: str) -> None:
+        """Replace a dead worker; without room for one, lose it and move its envs to the others."""
+        try:
+            self._replace(worker)
+        except NoRoomError as err:
+            self._drop(worker, f"{cause}; {err}")
+        except Exception:  # noqa: BLE001 - a failed start shows as a dead worker next time
+            pass
+
+    def _drop(self, worker: int, why: str) -> None:
+        """Lose ``worker`` for good: its envs go to the surviving workers with the fewest envs."""
+        moved = self.envs_of(worker)
+        survivors = sorted(set(self._home) - {worker})
+        if not survivors:
+            raise PoolLostError(f"every worker of the pool is lost, the last one: {why}")
+        for env_id in moved:
+            self._home[env_id] = min(survivors, key=lambda w: (len(self.envs_of(w)), w))
+        message = (f"worker {worker} lost ({why}); the pool goes on with {len(survivors)} of {self.pool} "
+                   f"workers, env(s) {', '.join(map(str, moved))} moved to the others")
+        self.lost.append(message)
+        log.warning("%s", message)  # logger "foam_bridge"
+
+    def _death_cause(self, worker: int) -> str:
+        """Why ``worker`` died, as its envs' episodes record it."""
+        return WORKER_DIED
 
     @abstractmethod
     def _send(self, worker: int, batch: list[Request]) -> Any:

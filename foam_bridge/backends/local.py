@@ -130,7 +130,7 @@ class LocalBackend(Backend):
         if conn is not None:
             conn.close()
         self._conns[worker] = None
-        for env_id in range(worker, self.num_envs, self.pool):
+        for env_id in self.envs_of(worker):
             kill_processes_under(env_dir(self.work_dir, env_id))
 
     def worker_pid(self, env_id: int) -> int:

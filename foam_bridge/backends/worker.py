@@ -38,7 +38,8 @@ class Reply(NamedTuple):
     """The answer to one Request.
 
     ``ok`` False: ``error`` is "ExceptionType: message" (``kind`` the type's name, ``where`` the
-    raising file:line), or "worker died" with ``worker_died`` set.
+    raising file:line), or, with ``worker_died`` set, why the worker died: "worker died", or "node
+    lost: IP/NODE" for a Ray actor whose node died.
     """
 
     env_id: int

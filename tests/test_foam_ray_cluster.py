@@ -1,0 +1,382 @@
+"""The Ray backend on a multi-node cluster that loses nodes (Ray's own ``cluster_utils.Cluster``: several
+raylets on this machine only, started and stopped by each test). A node is killed as a lost
+machine would be (its raylet and everything under it, no graceful drain) while a batch is stepping.
+
+Losing capacity must never hang: the lost node's episodes end with cause "node lost: ...", a
+replacement goes to a node with room (one that joined later included), without room the pool goes on
+with fewer workers, and without any worker the step raises PoolLostError. Unreachable or too small
+clusters are one-line errors at start. train-foam (its own process, the driver) reaches its episode
+target with a node killed mid-update and resumes onto a node that joined later; with no node left it
+stops in one line saying how to resume. Every wait here is bounded (``bounded``, ``wait_until``,
+timeouts)."""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from foam_marks import needs_openfoam
+
+from foam_bridge.batched import BatchedFoamEnv
+from foam_bridge.config import FoamEnvConfig
+from foam_bridge.errors import ClusterError, PoolLostError
+
+ray = pytest.importorskip("ray")
+
+COARSE = FoamEnvConfig(mesh_scale=0.4, simple_variant="SIMPLEC", relax_k_omega=0.8, max_iterations=300,
+                       step_timeout_s=30.0)
+ACTION = (0.9, 0.5)  # episodes of 2-3 steps on this mesh, ending normally (converged or at the cap)
+#: The longest a step may take here: Ray's notice of a dead actor and the bounded start of a
+#: replacement (start_deadline_s: 30 s with this config) with room to spare on a loaded machine.
+STEP_BOUND_S = 120.0
+
+
+def bounded(seconds: float, fn: Callable[..., Any], *args: Any) -> Any:
+    """``fn(*args)``, failing the test instead of hanging it when it takes longer than ``seconds``."""
+    result: dict[str, Any] = {}
+
+    def target() -> None:
+        try:
+            result["value"] = fn(*args)
+        except BaseException as err:  # noqa: BLE001 - re-raised in the test's thread
+            result["error"] = err
+
+    thread = threading.Thread(target=target, daemon=True)
+    thread.start()
+    thread.join(seconds)
+    if thread.is_alive():
+        pytest.fail(f"{getattr(fn, '__name__', fn)} did not return within {seconds:.0f} s (hung)")
+    if "error" in result:
+        raise result["error"]
+    return result["value"]
+
+
+def add_node(cluster: Any, cpus: int) -> Any:
+    """A node of ``cpus`` CPUs joins the cluster."""
+    node = cluster.add_node(num_cpus=cpus)
+    cluster.wait_for_nodes()
+    return node
+
+
+@contextlib.contextmanager
+def ray_cluster(head_cpus: int, *node_cpus: int) -> Iterator[tuple[Any, list[Any], list[subprocess.Popen]]]:
+    """A cluster on this machine for drivers in other processes: (cluster, nodes, processes); the
+    processes the test adds are killed, if still running, before the cluster stops."""
+    from ray.cluster_utils import Cluster
+
+    cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": head_cpus})
+    processes: list[subprocess.Popen] = []
+    try:
+        nodes = [add_node(cluster, cpus) for cpus in node_cpus]
+        yield cluster, nodes, processes
+    finally:
+        for process in processes:
+            if process.poll() is None:
+                process.kill()
+                process.communicate()
+        cluster.shutdown()
+
+
+@contextlib.contextmanager
+def cluster_of(head_cpus: int, *node_cpus: int) -> Iterator[tuple[Any, list[Any]]]:
+    """A cluster on this machine (head + nodes of these CPU counts), with this process connected."""
+    with ray_cluster(head_cpus, *node_cpus) as (cluster, nodes, _):
+        bounded(60, lambda: ray.init(address=cluster.address, include_dashboard=False, log_to_driver=False))
+        try:
+            yield cluster, nodes
+        finally:
+            ray.shutdown()
+
+
+def kill_node(cluster: Any, node: Any) -> None:
+    """Kill ``node`` as a lost machine dies: its raylet and the rest of Ray's processes there (SIGKILL,
+    no drain) and its worker processes, the raylet's children (cluster_utils leaves these to exit by
+    themselves, which they do not always do at once). The solvers under the workers are left to die
+    with them."""
+    raylet = node.all_processes["raylet"][0].process.pid
+    workers = [pid for pid in _all_pids() if _parent(pid) == raylet]
+    cluster.remove_node(node, allow_graceful=False)
+    for pid in workers:
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(pid, signal.SIGKILL)
+
+
+def _all_pids() -> list[int]:
+    return [int(entry) for entry in os.listdir("/proc") if entry.isdigit()]
+
+
+def _stat(pid: int) -> list[str]:
+    """The fields of /proc/PID/stat after the command name (state, parent, ...); [] once it is gone."""
+    try:
+        with open(f"/proc/{pid}/stat") as stat:
+            return stat.read().rsplit(")", 1)[1].split()
+    except (OSError, IndexError):
+        return []
+
+
+def _parent(pid: int) -> int:
+    fields = _stat(pid)
+    return int(fields[1]) if fields else 0
+
+
+def kill_node_soon(cluster: Any, node: Any, delay_s: float, run_dir: Any) -> dict[str, list[int]]:
+    """``kill_node`` ``delay_s`` from now, from another thread; returns {"solvers": pids of the
+    simpleFoam processes under ``run_dir`` just before the kill}."""
+    seen: dict[str, list[int]] = {"solvers": []}
+
+    def kill() -> None:
+        seen["solvers"] = solver_pids(run_dir)
+        kill_node(cluster, node)
+
+    threading.Timer(delay_s, kill).start()
+    return seen
+
+
+def solver_pids(run_dir: Any) -> list[int]:
+    found = subprocess.run(["pgrep", "-f", f"simpleFoam .*{run_dir}"], capture_output=True, text=True)
+    return [int(pid) for pid in found.stdout.split()]
+
+
+def wait_gone(pids: list[int], seconds: float = 15.0) -> list[int]:
+    """The pids still alive after waiting up to ``seconds`` for them to exit."""
+    deadline = time.monotonic() + seconds
+    alive = pids
+    while alive and time.monotonic() < deadline:
+        time.sleep(0.5)
+        alive = [pid for pid in alive if _alive(pid)]
+    return alive
+
+
+def _alive(pid: int) -> bool:
+    fields = _stat(pid)
+    return bool(fields) and fields[0] != "Z"  # a zombie has exited
+
+
+def step(env: BatchedFoamEnv) -> tuple:
+    return bounded(STEP_BOUND_S, env.step, np.tile(ACTION, (env.num_envs, 1)))
+
+
+def steps_until_a_loss(env: BatchedFoamEnv, seconds: float = 60.0) -> list[tuple[int, str, str, str]]:
+    """Step until an episode ends with "node lost" (the kill may land mid-step or between steps; a step
+    is a second or two here); returns the ended episodes' ``ended`` records."""
+    records: list[tuple[int, str, str, str]] = []
+    deadline = time.monotonic() + seconds
+    while not any(r[2].startswith("node lost") for r in records) and time.monotonic() < deadline:
+        records += ended(step(env)[4])
+    return records
+
+
+def ended(infos: dict[str, Any]) -> list[tuple[int, str, str, str]]:
+    """(env, outcome, cause, node) of each episode that ended in a step."""
+    if "final_info" not in infos:
+        return []
+    final = infos["final_info"]
+    return [(int(i), str(final["outcome"][i]), str(final["cause"][i]), str(final["episode"]["node"][i]))
+            for i in np.flatnonzero(infos["_final_info"])]
+
+
+def label_of(node: Any) -> str:
+    """The suffix of Backend.node_of for a cluster_utils node ("IP/" + its node id's first 8 digits)."""
+    return "/" + node.node_id[:8]
+
+
+@needs_openfoam
+def test_a_lost_node_ends_its_episodes_and_the_batch_goes_on_with_the_survivor(tmp_path):
+    with cluster_of(1, 1) as (cluster, (doomed,)):
+        env = bounded(STEP_BOUND_S, BatchedFoamEnv, COARSE, 2, "ray", 2, None, tmp_path, 5)
+        try:
+            bounded(STEP_BOUND_S, env.reset)
+            nodes = [env.backend.node_of(i) for i in range(2)]
+            lost = [i for i, node in enumerate(nodes) if node.endswith(label_of(doomed))]
+            assert len(lost) == 1 and len(set(nodes)) == 2, nodes  # one actor on each node
+            survivor = nodes[1 - lost[0]]
+            seen = kill_node_soon(cluster, doomed, 1.0, tmp_path)
+            records = steps_until_a_loss(env)
+            for _ in range(4):  # long enough for the moved env to end an episode on the survivor
+                records += ended(step(env)[4])
+            loss = [r for r in records if r[2].startswith("node lost")]
+            assert loss == [(lost[0], "crashed", f"node lost: {nodes[lost[0]]}", nodes[lost[0]])], records
+            assert env.backend.workers() == 1 and len(env.backend.lost) == 1
+            assert [env.backend.node_of(i) for i in range(2)] == [survivor, survivor]
+            after = records[records.index(loss[0]) + 1:]
+            assert any(r[0] == lost[0] and r[1] != "crashed" and r[3] == survivor for r in after), records
+            assert seen["solvers"] and not wait_gone(seen["solvers"])  # the lost node's solver died too
+        finally:
+            bounded(STEP_BOUND_S, env.close)
+        assert not solver_pids(tmp_path)
+
+
+@needs_openfoam
+def test_a_node_that_joined_later_takes_the_replacement_and_no_node_left_is_one_error(tmp_path):
+    with cluster_of(0, 1) as (cluster, (first,)):
+        with pytest.raises(ClusterError, match="has 1 CPUs; a pool of 2 workers needs 2"):
+            bounded(30, BatchedFoamEnv, COARSE, 2, "ray", 2, None, tmp_path / "too_big", 5)
+        env = bounded(STEP_BOUND_S, BatchedFoamEnv, COARSE, 1, "ray", 1, None, tmp_path, 5)
+        try:
+            bounded(STEP_BOUND_S, env.reset)
+            assert env.backend.node_of(0).endswith(label_of(first))
+            later = add_node(cluster, 1)
+            kill_node_soon(cluster, first, 1.0, tmp_path)
+            old = env.backend.node_of(0)
+            records = steps_until_a_loss(env)
+            loss = [r for r in records if r[2].startswith("node lost")]
+            assert loss == [(0, "crashed", f"node lost: {old}", old)]
+            assert env.backend.node_of(0).endswith(label_of(later)) and env.backend.workers() == 1
+            assert env.backend.lost == []  # replaced, not lost
+            kill_node_soon(cluster, later, 0.5, tmp_path)
+            deadline = time.monotonic() + 60  # steps of a second or two until the loss shows
+            with pytest.raises(PoolLostError, match="every worker of the pool is lost"):
+                while time.monotonic() < deadline:
+                    step(env)
+        finally:
+            bounded(STEP_BOUND_S, env.close)
+        assert not solver_pids(tmp_path)
+
+
+def closed_port() -> int:
+    """A port of 127.0.0.1 nobody listens on."""
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+def test_an_unreachable_address_is_one_error_within_seconds(tmp_path):
+    port = closed_port()
+    assert not ray.is_initialized()
+    start = time.monotonic()
+    with pytest.raises(ClusterError, match=f"cannot reach the Ray cluster at 127.0.0.1:{port}"):
+        bounded(60, BatchedFoamEnv, COARSE, 1, "ray", 1, f"127.0.0.1:{port}", tmp_path, 0)
+    assert time.monotonic() - start < 15
+    with pytest.raises(ClusterError, match="ray_address must be HOST:PORT"):
+        BatchedFoamEnv(COARSE, 1, backend="ray", ray_address="no-port-here", work_dir=tmp_path)
+
+
+def test_train_foam_refuses_an_unreachable_address_in_one_line(capsys, tmp_path):
+    from jaxsimrl.cli.main import main
+
+    address, start = f"127.0.0.1:{closed_port()}", time.monotonic()
+    argv = ["train-foam", "--backend", "ray", "--ray-address", address, "--out", str(tmp_path / "run")]
+    code = bounded(60, main, argv)
+    err = capsys.readouterr().err
+    assert code == 2 and err.strip().splitlines() == [
+        f"jaxsimrl train-foam: error: cannot reach the Ray cluster at {address}: Connection refused"]
+    assert time.monotonic() - start < 30 and not (tmp_path / "run").exists()
+
+
+def test_episodes_csv_records_the_node_and_reads_older_files_without_it(tmp_path):
+    from jaxsimrl.runs.episodes import EpisodeLog
+
+    path = tmp_path / "episodes.csv"
+    log = EpisodeLog(path)
+    log.add(0, 1, {"episode": {"seed": 1, "iterations": 90, "outcome": "converged", "actions": [[0.9, 0.5]],
+                               "node": "10.0.0.7/86c67176"}})
+    log.add(1, 1, {"episode": {"seed": 2, "iterations": 0, "outcome": "crashed", "actions": []}})
+    log.flush()
+    assert [row["node"] for row in EpisodeLog.load(path, 1).rows] == ["10.0.0.7/86c67176", ""]
+    header, *rows = path.read_text().splitlines()
+    older = ",".join(header.split(",")[:-1])  # a file written before the column existed
+    path.write_text("\n".join([older, *(row.rsplit(",", 1)[0] for row in rows)]) + "\n")
+    assert [row["node"] for row in EpisodeLog.load(path, 1).rows] == ["", ""]
+
+
+@needs_openfoam
+def test_the_local_pool_records_this_host_as_the_node(tmp_path):
+    with BatchedFoamEnv(COARSE, 1, pool=1, work_dir=tmp_path, seed=5) as env:
+        env.reset()
+        records: list[tuple[int, str, str, str]] = []
+        while not records:
+            records = ended(step(env)[4])
+    assert records[0][3] == socket.gethostname()
+
+
+def _train_foam(processes: list[subprocess.Popen], tmp: Path, *argv: str) -> subprocess.Popen:
+    """``jaxsimrl train-foam ARGV`` as its own process (the driver), its cases under ``tmp``."""
+    script = Path(sys.executable).with_name("jaxsimrl")
+    env = {**os.environ, "TMPDIR": str(tmp)}
+    process = subprocess.Popen([str(script), "train-foam", *argv], env=env, stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True)
+    processes.append(process)
+    return process
+
+
+def wait_until(condition: Callable[[], bool], process: subprocess.Popen, what: str,
+               seconds: float = 300.0) -> None:
+    """Poll ``condition`` while ``process`` runs; fail (killing it) if it ends or ``seconds`` pass first."""
+    deadline = time.monotonic() + seconds
+    while not condition():
+        if process.poll() is not None or time.monotonic() > deadline:
+            process.kill()
+            pytest.fail(f"{what}: not seen; the run said: {process.communicate()[1][-2000:]}")
+        time.sleep(0.5)
+
+
+@needs_openfoam
+def test_train_foam_reaches_its_target_with_a_node_killed_and_resumes(tmp_path):
+    from foam_bridge.backends.reaper import processes_under
+    from jaxsimrl.runs.episodes import EpisodeLog
+
+    run, tmp = tmp_path / "run", tmp_path / "tmp"
+    tmp.mkdir()
+    with ray_cluster(1, 1) as (cluster, (doomed,), processes):
+        common = ["--backend", "ray", "--ray-address", cluster.address, "--pool", "2"]
+        process = _train_foam(processes, tmp, *common, "--mesh-scale", "0.5", "--max-iterations", "300",
+                              "--steps-per-update", "8", "--episodes", "6", "--seed", "3", "--out", str(run))
+        # both envs have a solver: kill a node mid-update
+        wait_until(lambda: len(solver_pids(tmp)) >= 2, process, "two solvers running")
+        time.sleep(1.0)
+        kill_node(cluster, doomed)
+        out, err = process.communicate(timeout=600)
+        assert process.returncode == 0, err
+        assert "Traceback" not in err and " lost (node lost: " in err  # the warning line
+        rows = EpisodeLog.load(run / "episodes.csv", 10**9).rows
+        lost = [row for row in rows if row["cause"].startswith("node lost")]
+        assert len(rows) >= 6 and len(lost) == 1 and lost[0]["node"].endswith(label_of(doomed)), rows
+        assert len({row["node"] for row in rows}) == 2 and all(row["node"] for row in rows)
+        summary = json.loads((run / "summary.json").read_text())
+        assert summary["complete"] and len(summary["workers_lost"]) == 1
+        assert not wait_gone(processes_under(tmp))
+
+        joined = add_node(cluster, 1)  # room for a full pool again
+        target = len(rows) + 4  # the first run may have gone past 6 (whole updates)
+        resumed = _train_foam(processes, tmp, "--resume", str(run), "--episodes", str(target), *common)
+        out, err = resumed.communicate(timeout=600)
+        assert resumed.returncode == 0, err
+        rows = EpisodeLog.load(run / "episodes.csv", 10**9).rows
+        assert len(rows) >= target and any(row["node"].endswith(label_of(joined)) for row in rows)
+        assert json.loads((run / "summary.json").read_text())["workers_lost"] == []
+        assert not wait_gone(processes_under(tmp))
+
+
+@needs_openfoam
+def test_train_foam_with_no_node_left_stops_in_one_line_saying_how_to_resume(tmp_path):
+    from foam_bridge.backends.reaper import processes_under
+
+    run, tmp = tmp_path / "run", tmp_path / "tmp"
+    tmp.mkdir()
+    with ray_cluster(0, 1) as (cluster, (only,), processes):  # the head runs no worker
+        process = _train_foam(processes, tmp, "--backend", "ray", "--ray-address", cluster.address,
+                              "--pool", "1", "--mesh-scale", "0.5", "--max-iterations", "300",
+                              "--steps-per-update", "8", "--episodes", "1000", "--out", str(run))
+        wait_until(lambda: (run / "checkpoints" / "1").is_dir() and bool(solver_pids(tmp)), process,
+                   "a first checkpoint and a solver running")
+        kill_node(cluster, only)
+        killed = time.monotonic()
+        _, err = process.communicate(timeout=STEP_BOUND_S)
+        assert time.monotonic() - killed < STEP_BOUND_S / 2
+        last = err.strip().splitlines()[-1]
+        assert process.returncode == 1 and "Traceback" not in err, err
+        assert "PoolLostError: every worker of the pool is lost" in last and "node lost: " in last
+        assert last.endswith(f"resume with: jaxsimrl train-foam --resume {run}")
+        assert not wait_gone(processes_under(tmp))
