@@ -4,8 +4,9 @@ Two stages:
 
 1. :func:`build_base_case` (once per env): copy the template (or the user's case) to ``base/``, write
    the mesh parameters and run blockMesh when there is no mesh yet, check that the env can drive the
-   case (one-line :class:`foam_bridge.errors.CaseError` naming the file and entry if not) and read what
-   it needs from it (:class:`CaseInfo`).
+   case (one-line :class:`foam_bridge.errors.CaseError` naming the file and entry if not), read what
+   it needs from it (:class:`CaseInfo`) and, for a user's case, run one SIMPLE iteration of it
+   (:func:`dry_run`: a case that cannot run fails here with OpenFOAM's message, not in every episode).
 2. :func:`write_episode_case` (every episode): copy ``base/`` to a fresh directory (the mesh is
    symlinked) and install the bridge's machinery.
 
@@ -48,11 +49,13 @@ nu = 1.56e-5 m^2/s from its transportProperties): ``k = 1.5 (I U)^2`` and ``omeg
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import gzip
 import math
 import os
 import shutil
 import subprocess
+import tempfile
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -65,6 +68,7 @@ from foam_bridge import foamdict
 from foam_bridge.config import FOLLOW_ALPHA_U, STEP_HEIGHT_H, FoamEnvConfig, without_convergence_test
 from foam_bridge.errors import CaseError
 from foam_bridge.fields import time_directories
+from foam_bridge.logparse import LogParser
 from foam_bridge.openfoam import OpenFOAM
 
 TEMPLATE_DIR = Path(__file__).parent / "cases" / "backward_facing_step"
@@ -112,7 +116,9 @@ class CaseInfo:
     no value); ``inlet_state``/``cells_state``: mean |U|^2 over the inlet faces and over the cells of
     0/U; ``flat_relaxation``: the case's relaxationFactors use the old flat layout (``U 0.7;``, no
     ``fields``/``equations``); ``nu``: the kinematic viscosity (only read when a turbulence formula
-    applies).
+    applies); ``solved_fields``: the fields whose equations its first SIMPLE iteration solved, as
+    simpleFoam names them (``Ux``, ``Uy``, ``p``, ``k``, ...; from the dry run of a user's case, empty
+    for the built-in one); ``own_factors``: its own (alpha_u, alpha_p), None if it lacks either.
     """
 
     inlet_speed: float | None
@@ -121,6 +127,8 @@ class CaseInfo:
     cells_state: float
     flat_relaxation: bool = False
     nu: float | None = None
+    solved_fields: tuple[str, ...] = ()
+    own_factors: tuple[float, float] | None = None
 
 
 def inlet_turbulence(velocity: float, intensity: float = TURBULENCE_INTENSITY,
@@ -146,7 +154,12 @@ def mesh_parameters(mesh_scale: float, step_height: float) -> dict[str, float | 
 
 # ----- base case ------------------------------------------------------------------------------------
 def build_base_case(cfg: FoamEnvConfig, dest: Path, openfoam: OpenFOAM) -> CaseInfo:
-    """Copy the template (or ``cfg.case_dir``) to ``dest``, mesh it if needed, check it, read it."""
+    """Copy the template (or ``cfg.case_dir``) to ``dest``, mesh it if needed, check it, read it.
+
+    A user's case must also run one SIMPLE iteration with its own settings (:func:`dry_run`). The
+    built-in template is ours, fixed and run by every env test of the suite: it skips the dry run, so
+    the paper's runs start as before.
+    """
     source = TEMPLATE_DIR if cfg.case_dir is None else Path(cfg.case_dir)
     check_case_files(source, cfg, need_mesh=False)
     copy_case(source, dest)
@@ -161,7 +174,56 @@ def build_base_case(cfg: FoamEnvConfig, dest: Path, openfoam: OpenFOAM) -> CaseI
     if cfg.inlet_patch not in patch_names(dest):
         raise CaseError(f"case {source}: no patch named {cfg.inlet_patch!r} in the mesh "
                         f"(patches: {', '.join(patch_names(dest))}); set FoamEnvConfig.inlet_patch")
-    return info
+    if cfg.case_dir is None:
+        return info
+    factors = info.own_factors or cfg.action_low
+    return dataclasses.replace(info, solved_fields=dry_run(dest, cfg, openfoam, source, factors, info))
+
+
+def dry_run(base: Path, cfg: FoamEnvConfig, openfoam: OpenFOAM, source: Path, factors: tuple[float, float],
+            info: CaseInfo) -> tuple[str, ...]:
+    """Run one SIMPLE iteration of the meshed case ``base`` as an episode runs it, with the (alpha_u,
+    alpha_p) ``factors`` (the case's own where it has them), in a temporary copy; returns the fields it
+    solved. Everything else is the case's own: solvers, schemes, function objects, inlet.
+
+    A case that cannot run with its own settings (an unknown solver name, a missing ``;`` that
+    foamDictionary reads past, a field that blows up at once) would otherwise fail every episode at
+    iteration 1, and a run of them looks like one that converges in one iteration. One-line CaseError
+    with OpenFOAM's own message, naming the user's files in ``source``. Bounded by
+    ``cfg.step_timeout_s``: one iteration is less than a step's ``interval``.
+    """
+    with tempfile.TemporaryDirectory(prefix="foam_bridge_dry_run_") as scratch:
+        copy = Path(scratch) / "case"
+        shutil.copytree(base, copy, ignore=shutil.ignore_patterns("polyMesh", "log.*"))
+        (copy / "constant" / "polyMesh").symlink_to((base / "constant" / "polyMesh").resolve())
+        (copy / "system" / BRIDGE_DIR).mkdir()
+        _write_control(copy, cfg, pause=False, functions=False, end=1)
+        _write_fixed_fv_solution(copy, base, cfg, relaxation_text(cfg, *factors, info.flat_relaxation))
+        returncode, output = _run_one_iteration(copy, cfg, openfoam, source)
+        parser = LogParser("", "", cfg.divergence_threshold)
+        parser.feed(output)
+        parser.finish()
+        cause = foamdict.fatal_message(output) or parser.error or parser.diverged
+        if cause or returncode != 0 or parser.completed < 1:
+            tail = " | ".join(output.strip().splitlines()[-3:])
+            detail = (cause or f"exit {returncode}: {tail}").replace(str(copy), str(source))
+            raise CaseError(f"case {source}: simpleFoam cannot run one SIMPLE iteration with the case's own "
+                            f"settings: {detail}")
+    return tuple(parser.history[0])
+
+
+def _run_one_iteration(copy: Path, cfg: FoamEnvConfig, openfoam: OpenFOAM, source: Path) -> tuple[int, str]:
+    """simpleFoam's exit status and output (stdout and stderr) of the dry run in ``copy``; CaseError if
+    it hangs."""
+    try:
+        result = subprocess.run([openfoam.executable("simpleFoam"), "-case", str(copy)], cwd=copy,
+                                env=openfoam.environment(copy), stdin=subprocess.DEVNULL,
+                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                                errors="replace", timeout=cfg.step_timeout_s, check=False)
+    except subprocess.TimeoutExpired:  # subprocess.run killed it
+        raise CaseError(f"case {source}: simpleFoam did not complete one SIMPLE iteration within "
+                        f"{cfg.step_timeout_s:g} s (step_timeout_s)") from None
+    return result.returncode, result.stdout
 
 
 @contextlib.contextmanager
@@ -194,13 +256,11 @@ def copy_case(source: Path, dest: Path, mesh: bool = True) -> None:
             packed.unlink()
 
 
-def check_case(source: Path, cfg: FoamEnvConfig, openfoam: OpenFOAM, scratch: Path) -> None:
-    """Every check that needs no mesh, on a copy of ``source`` in ``scratch`` (the user's case is never
-    touched: expanding a #codeStream writes into the case). One-line CaseError on the first problem."""
-    check_case_files(source, cfg, need_mesh=False)
-    copy_case(source, scratch / "checked", mesh=False)
-    with _named_after(scratch / "checked", source):
-        inspect_case(scratch / "checked", cfg, openfoam)
+def check_case(source: Path, cfg: FoamEnvConfig, openfoam: OpenFOAM, scratch: Path) -> CaseInfo:
+    """Every check an env makes at creation (mesh and dry run included) on a copy of ``source`` in
+    ``scratch`` (the user's case is never touched: expanding a #codeStream writes into the case).
+    One-line CaseError on the first problem."""
+    return build_base_case(dataclasses.replace(cfg, case_dir=source), scratch / "checked", openfoam)
 
 
 def check_case_files(case: Path, cfg: FoamEnvConfig, need_mesh: bool) -> None:
@@ -258,7 +318,24 @@ def inspect_case(case: Path, cfg: FoamEnvConfig, openfoam: OpenFOAM) -> CaseInfo
         check_turbulence_inlets(case, cfg, openfoam)
     nu = None if cfg.turbulence_formula is None else _viscosity(case, openfoam)
     cells_state = _mean_magnitude_squared(velocity.get("internalField", 0.0))
-    return CaseInfo(speed, direction, inlet_state, cells_state, flat, nu)
+    return CaseInfo(speed, direction, inlet_state, cells_state, flat, nu,
+                    own_factors=own_factors(relaxation, cfg))
+
+
+def own_factors(relaxation: Any, cfg: FoamEnvConfig) -> tuple[float, float] | None:
+    """The case's own (alpha_u, alpha_p) from its expanded relaxationFactors: U's equation factor and p's
+    field factor (the old flat layout: both at the top); None if either is missing."""
+    if not isinstance(relaxation, dict):
+        return None
+    flat = "fields" not in relaxation and "equations" not in relaxation
+    equations = relaxation if flat else relaxation.get("equations", {})
+    fields = relaxation if flat else relaxation.get("fields", {})
+    try:
+        factors = (float(foamdict.lookup(equations, cfg.velocity_field)),
+                   float(foamdict.lookup(fields, cfg.pressure_field)))
+    except (KeyError, TypeError, ValueError):
+        return None
+    return factors if all(0 < f <= 1 for f in factors) else None
 
 
 def check_inlet_settable(case: Path, cfg: FoamEnvConfig, openfoam: OpenFOAM) -> None:

@@ -76,11 +76,16 @@ def _read_error(path: Path, relative: str, output: str) -> str:
         where = f"entry {entry!r} uses #codeStream/#calc, which" if entry else "a #codeStream/#calc"
         return (f"{path}: {where} OpenFOAM v1912 refuses to compile when run as root; run as a normal "
                 f"user or replace it with plain values")
+    return f"{path}: OpenFOAM cannot read {relative}: {fatal_message(output) or 'foamDictionary failed'}"
+
+
+def fatal_message(output: str) -> str:
+    """One line out of an application's FOAM FATAL (IO) ERROR: its message line and, where OpenFOAM
+    names one, the ``file: ...`` position; "" if the output holds no FOAM FATAL message."""
     lines = [line.strip() for line in output.splitlines() if line.strip()]
     message = next((lines[i + 1] for i, line in enumerate(lines[:-1]) if "FOAM FATAL" in line), "")
     position = next((line for line in lines if line.startswith("file:")), "")
-    detail = "; ".join(part for part in (message, position) if part) or "foamDictionary failed"
-    return f"{path}: OpenFOAM cannot read {relative}: {detail}"
+    return "; ".join(part for part in (message, position) if part)
 
 
 def code_entry(path: Path) -> str | None:

@@ -6,19 +6,53 @@ config, turning the lists back into tuples. Fields missing from ``d`` take FoamE
 run written before a field existed still loads); an unknown key or a value of the wrong kind is a
 one-line ValueError. The fields are read from the dataclass itself, so a field added to FoamEnvConfig
 round-trips without a change here.
+
+A config.json always names every field, its convergence criterion and action box included, so a run
+keeps the MDP it was written with. :func:`user_case_config` gives a user's case (``case_dir``) the case's
+own criterion and action box (foam_bridge.user_case) where they are not set explicitly.
 """
 
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
 from foam_bridge.config import FoamEnvConfig
+from foam_bridge.errors import OpenFOAMNotFoundError
 
 #: Fields stored as JSON lists that FoamEnvConfig holds as tuples.
 _TUPLE_FIELDS = ("action_low", "action_high", "turbulence_fields", "inlet_turbulence")
+#: Fields of the built-in case's geometry only: a user's case keeps its own mesh.
+BUILTIN_ONLY = ("mesh_scale", "step_height")
+
+
+def builtin_only_set(section: Mapping[str, Any]) -> list[str]:
+    """The BUILTIN_ONLY fields that ``section`` (a --config "foam" section) sets to other than their default
+    (a config.json of an earlier run names them all, at their defaults for a user's case)."""
+    defaults = FoamEnvConfig()
+    return [name for name in BUILTIN_ONLY if name in section and section[name] != getattr(defaults, name)]
+
+
+def user_case_config(cfg: FoamEnvConfig, explicit: Iterable[str]) -> FoamEnvConfig:
+    """``cfg`` of a user's case with the case's own convergence criterion and action box, for each of
+    them not in ``explicit`` (the fields the user set); one-line CaseError if the case cannot run."""
+    from foam_bridge.user_case import CASE_DEFAULT_FIELDS, case_defaults
+
+    given = set(explicit)
+    if given & {"action_low", "action_high"}:  # the box is set as a whole
+        given |= {"action_low", "action_high"}
+    wanted = [name for name in CASE_DEFAULT_FIELDS if name not in given]
+    if not wanted:  # nothing to read: no OpenFOAM needed here (e.g. a Ray driver without it)
+        return cfg.validate()
+    try:
+        own = case_defaults(cfg, fields=wanted)
+    except OpenFOAMNotFoundError as err:
+        raise OpenFOAMNotFoundError(f"{err} (it reads the case's own criterion and action box; without "
+                                    f"OpenFOAM here, set convergence, action_low and action_high in "
+                                    f'--config\'s "foam" section)') from None
+    return dataclasses.replace(cfg, **own).validate()
 
 
 def foam_config_to_json(cfg: FoamEnvConfig) -> dict[str, Any]:
