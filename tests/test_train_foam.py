@@ -18,8 +18,8 @@ import pytest
 from foam_marks import needs_openfoam
 
 from foam_bridge.backends.reaper import processes_under
+from jaxsimrl.cli.foam_plan import foam_ppo_defaults
 from jaxsimrl.cli.main import main
-from jaxsimrl.cli.train_foam import foam_ppo_defaults
 from jaxsimrl.runs.episodes import EpisodeLog
 
 # The smallest usable mesh; 4 steps per env per update, so updates come every few seconds.

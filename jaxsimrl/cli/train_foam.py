@@ -6,13 +6,17 @@ paper's (Pawar & Maulik, "Solver convergence acceleration"): a 2 x 64 tanh MLP, 
 velocity uniform in [35, 65] m/s, actions (alpha_u, alpha_p) in [0.2, 0.95]^2 every 100 iterations, the
 training criterion, 2000 episodes, the built-in backward-facing step (SIMPLEC, k/omega relaxed at 0.8).
 
-One update = ``steps_per_update`` env steps (see :func:`foam_ppo_defaults` for the sizes and why); after
-every update: metrics rows, episodes.csv, a checkpoint, summary.json (in that order, Ctrl-C held back).
+One update = ``steps_per_update`` env steps (see :func:`jaxsimrl.cli.foam_plan.foam_ppo_defaults` for
+the sizes and why); after every update: metrics rows, episodes.csv, a checkpoint, summary.json (in that
+order, Ctrl-C held back).
 ``--resume RUN_DIR`` continues from the last checkpoint. Every checkpoint also records the episodes in
 flight (each env's episode seed, actions so far, K, observation and seed stream): the solvers did not
 survive the process, so resume replays them (the solver is deterministic), checks K, return and
 observation against the record, and carries on mid-episode exactly as the run would have; where that
 fails (an older checkpoint, a changed machine) every env starts a new episode instead, and says so.
+A run killed before its first checkpoint resumes by starting over from its config.json. The run's
+length is ``--episodes``: it stops after the update in which the target is reached (PPOConfig.total_steps
+is only a safety bound derived from it, see :func:`jaxsimrl.cli.foam_plan.total_steps_for`).
 ``--init-from RUN_DIR`` starts a new run from another run's trained network and observation
 statistics (e.g. a coarse-mesh policy fine-tuned on the full mesh), with a fresh optimiser and new
 episodes.
@@ -23,64 +27,19 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import shutil
 import sys
 import time
-from dataclasses import dataclass, field
-from pathlib import Path
+from collections.abc import Callable
 from typing import Any
 
 from jaxsimrl.cli.errors import UsageError, positive_float, positive_int, seed_type
+from jaxsimrl.cli.foam_plan import KNOBS, FoamPlan, fresh_plan, resume_plan
 
 INTERRUPTED = 130
 #: Key of the episodes in flight (BatchedFoamEnv.snapshot) in each checkpoint's record.
 IN_FLIGHT = "in_flight"
-#: Env steps per update, summed over envs: ~20-30 episodes of the paper's 4-8 steps (see foam_ppo_defaults).
-FOAM_BATCH = 128
-#: The built-in case as the paper's code ran it (a user's --case keeps its own settings instead).
-PAPER_CASE = {"simple_variant": "SIMPLEC", "relax_k_omega": 0.8, "inlet_velocity": [35.0, 65.0]}
-#: Default reward scale per --reward: each makes a step of the built-in case ~ -0.1 (a SIMPLE iteration
-#: costs ~11 linear-solver iterations and, on this project's 2-core machine, 6-25 ms of solver CPU time
-#: from mesh 0.5 to the full mesh; experiments/foam/eval-full/eval.csv).
-REWARD_SCALES = {"iterations": 1e-3, "linear-iterations": 1e-4, "solver-time": 0.1}
-#: PPOConfig fields with a train-foam flag (the others come from --config).
-KNOBS: tuple[tuple[str, Any, str], ...] = (
-    ("steps_per_update", positive_int, f"env steps per PPO update over all envs (default {FOAM_BATCH}, "
-                                       "rounded up to a multiple of 4 x num_envs)"),
-    ("lr", positive_float, "Adam learning rate (paper: 2.5e-4)"),
-    ("gamma", float, "discount factor in [0, 1] (paper: 1)"),
-    ("gae_lambda", float, "GAE lambda in [0, 1]"),
-    ("clip_eps", positive_float, "PPO clipping epsilon"),
-    ("ent_coef", float, "entropy bonus coefficient (>= 0), on the squashed policy's entropy"),
-    ("update_epochs", positive_int, "SGD epochs over each update's batch"),
-    ("num_minibatches", positive_int, "minibatches per epoch"),
-    ("reward_scale", positive_float, "rewards (minus the --reward cost) are multiplied by this before GAE "
-                                     "(default: 1e-3 for iterations, 1e-4 for linear-iterations, 0.1 for "
-                                     "solver-time)"),
-    ("action_margin", float, "the tanh squash maps onto the action box widened by this fraction of its "
-                             "width on each side, then clips into the box, so the bounds are reachable "
-                             "(default 0: plain tanh, bounds only approached)"),
-)
-
-
-def foam_ppo_defaults(num_envs: int, reward: str = "iterations") -> dict[str, Any]:
-    """The PPOConfig fields train-foam sets before --config and flags.
-
-    The paper's network and optimiser (2 x 64 tanh MLP, lr 2.5e-4, gamma 1). Batch sizes: the paper's code
-    trained on 200-step batches with minibatches of 128 (RLlib); its episodes last 4-8 steps (400-800
-    iterations / 100), so a batch of ~128 steps holds 20-30 whole episodes, enough for a return estimate
-    with gamma = 1, while an update still comes every few minutes on 2 cores. 4 minibatches x 10 epochs
-    gives 40 SGD steps per update, as RLlib's 30 passes over 1.5 minibatches did. The MLP needs no
-    sequence: seq_len 1. Rewards are -100 per step and down to -max_iterations on a failure: a reward
-    scale of 1e-3 keeps returns (and so the value targets) O(1) (-0.4 to -4); the other rewards' scales
-    (REWARD_SCALES) do the same for their units.
-    """
-    per_env = max(4, math.ceil(FOAM_BATCH / num_envs))
-    per_env += -per_env % 4
-    return {"num_envs": num_envs, "steps_per_update": per_env * num_envs, "network": "mlp",
-            "hidden_sizes": [64, 64], "activation": "tanh", "lr": 2.5e-4, "gamma": 1.0, "gae_lambda": 0.95,
-            "update_epochs": 10, "num_minibatches": 4, "seq_len": 1, "reward_scale": REWARD_SCALES[reward],
-            "updates_per_chunk": 1, "ent_coef": 0.0}
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -98,7 +57,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    "default: min(num_envs, CPUs)); may change on --resume")
     p.add_argument("--num-envs", type=positive_int, help="parallel cases (default: = --pool)")
     p.add_argument("--episodes", type=positive_int, help="episodes to train for (default 2000, the paper); "
-                   "with --resume it may be raised")
+                   "training stops after the update in which the target is reached, so the episodes that "
+                   "also end in that update are kept too; with --resume it may be raised")
     p.add_argument("--mesh-scale", type=positive_float, help=f"mesh resolution factor (1.0 = 20,540 cells, "
                    f"default); >= {MESH_SCALE_USABLE_MIN:g} (coarser meshes are a different control problem)")
     p.add_argument("--step-height", type=positive_float, help="step height in m (default 0.0127 = h)")
@@ -131,161 +91,17 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 
-# ---- the plan: everything resolved before anything heavy starts ---------------------------------------
-@dataclass
-class FoamPlan:
-    ppo: Any  # PPOConfig
-    foam: Any  # FoamEnvConfig
-    episodes: int
-    seed: int
-    pool: int
-    backend: str
-    ray_address: str | None
-    run_path: Path
-    resume: bool
-    record: dict[str, Any] = field(default_factory=dict)
-    init_from: Any = None  # jaxsimrl.introspect.LoadedPolicy whose network the run starts from
-
-
-def _fresh_plan(args: argparse.Namespace) -> FoamPlan:
-    from foam_bridge.backends import validate_pool
-    from jaxsimrl.agents.ppo.config import PPOConfig
-    from jaxsimrl.runs.run_dir import RunDir
-
-    extra = _read_config(args.config) if args.config else {}
-    num_envs = args.num_envs or args.pool or 2
-    try:
-        foam = _foam_config(args, extra.get("foam", {}))
-        ppo_values = {**foam_ppo_defaults(num_envs, foam.reward), **extra.get("ppo", {})}
-        ppo_values.update({name: getattr(args, name) for name, _, _ in KNOBS
-                           if getattr(args, name) is not None})
-        ppo_values["steps_per_update"] += -ppo_values["steps_per_update"] % (ppo_values["num_minibatches"]
-                                                                             * num_envs)
-        ppo = PPOConfig.from_dict(ppo_values)
-        pool = validate_pool(num_envs, args.pool)
-    except (TypeError, ValueError) as err:
-        raise UsageError(f"invalid config: {err}") from None
-    if ppo.updates_per_chunk != 1:
-        raise UsageError("invalid config: updates_per_chunk must be 1 for train-foam (a checkpoint after "
-                         "every update)")
-    if args.backend != "ray" and args.ray_address:
-        raise UsageError("--ray-address needs --backend ray")
-    out = Path(args.out) if args.out else Path("runs") / time.strftime("foam-%Y%m%d-%H%M%S", time.gmtime())
-    try:
-        RunDir.check_new(out)
-    except ValueError as err:
-        raise UsageError(str(err)) from None
-    init_from = _starting_policy(args.init_from, ppo, foam) if args.init_from else None
-    return FoamPlan(ppo, foam, args.episodes or 2000, 0 if args.seed is None else args.seed, pool,
-                    args.backend or "local", args.ray_address, out, resume=False, init_from=init_from)
-
-
-def _starting_policy(run_dir: str, ppo: Any, foam: Any) -> Any:
-    """The policy of ``--init-from``, checked to fit this run's network, observation and action box."""
-    import numpy as np
-
-    from jaxsimrl.introspect import load_policy
-
-    try:
-        policy = load_policy(run_dir)
-    except ValueError as err:
-        raise UsageError(f"--init-from: {err}") from None
-    if policy.record.get("env") != "foam":
-        raise UsageError(f"--init-from: {run_dir} is not a train-foam run")
-    mine = (ppo.network, tuple(ppo.hidden_sizes), ppo.activation, foam.observation_size)
-    trained = policy.config
-    theirs = (trained.network, tuple(trained.hidden_sizes), trained.activation, policy.obs_dim)
-    if mine != theirs:
-        raise UsageError(f"--init-from: {run_dir} has (network, hidden sizes, activation, observation size) "
-                         f"{theirs}, this run {mine}")
-    box = (list(foam.action_low), list(foam.action_high))
-    if not (np.allclose(policy.action_low, box[0]) and np.allclose(policy.action_high, box[1])):
-        raise UsageError(f"--init-from: {run_dir} acts in the box {policy.action_low.tolist()}-"
-                         f"{policy.action_high.tolist()}, this run in {box[0]}-{box[1]}")
-    return policy
-
-
-def _foam_config(args: argparse.Namespace, extra: dict[str, Any]) -> Any:
-    """The FoamEnvConfig: the paper's built-in case, then --config's "foam" section, then flags."""
-    from foam_bridge.config import FoamEnvConfig
-    from jaxsimrl.envs.foam_config import foam_config_from_json, foam_config_to_json
-
-    values = {**foam_config_to_json(FoamEnvConfig()), **extra}
-    flags = {"mesh_scale": args.mesh_scale, "step_height": args.step_height,
-             "max_iterations": args.max_iterations, "case_dir": args.case, "reward": args.reward,
-             "confirm_alpha_u": args.confirm_alpha_u}
-    values.update({name: value for name, value in flags.items() if value is not None})
-    if values.get("case_dir") is None:  # the built-in case: its paper defaults, written out in config.json
-        for name, value in PAPER_CASE.items():
-            values[name] = value if values.get(name) is None else values[name]
-    if values.get("case_dir") is not None:
-        values["case_dir"] = str(Path(values["case_dir"]).resolve())
-    values["work_dir"] = None  # cases live in a temporary directory per process, never in the run dir
-    return foam_config_from_json(values)
-
-
-def _resume_plan(args: argparse.Namespace) -> FoamPlan:
-    from foam_bridge.backends import validate_pool
-    from jaxsimrl.agents.ppo.config import PPOConfig
-    from jaxsimrl.envs.foam_config import foam_config_from_json
-    from jaxsimrl.runs.run_dir import RunDir
-
-    fixed = ["config", "num_envs", "mesh_scale", "step_height", "max_iterations", "case", "reward", "seed",
-             "out", "init_from", "confirm_alpha_u"]
-    changed = [name for name in fixed + [k for k, _, _ in KNOBS] if getattr(args, name) is not None]
-    if changed:
-        flag = "--" + changed[0].replace("_", "-")
-        raise UsageError(f"{flag} cannot be used with --resume: a resumed run keeps "
-                         f"its saved config (only --episodes, --pool, --backend, --ray-address)")
-    try:
-        run = RunDir.existing(args.resume)
-        record = run.read_config()
-        if record.get("env") != "foam":
-            raise ValueError(f"{run.path} is not a train-foam run (env {record.get('env')!r})")
-        ppo = PPOConfig.from_dict(record["ppo"])
-        foam = foam_config_from_json(record["foam"])
-        pool = validate_pool(ppo.num_envs, args.pool or record.get("pool"))
-    except (KeyError, TypeError, ValueError) as err:
-        raise UsageError(f"cannot resume: {err}") from None
-    if not run.checkpoint_steps():
-        raise UsageError(f"cannot resume: no checkpoint in {run.path} (it stopped before its first update)")
-    episodes = int(record.get("episodes_target", 2000))
-    if args.episodes is not None:
-        if args.episodes < episodes:
-            raise UsageError(f"--episodes {args.episodes} is below the run's {episodes}: it may only be "
-                             f"raised")
-        episodes = args.episodes
-    return FoamPlan(ppo, foam, episodes, int(record.get("seed", 0)), pool,
-                    args.backend or record.get("backend", "local"), args.ray_address, run.path, resume=True,
-                    record=record)
-
-
-def _read_config(path: str) -> dict[str, Any]:
-    from jaxsimrl.runs.run_dir import read_json
-
-    try:
-        values = read_json(path)
-    except ValueError as err:
-        raise UsageError(f"--config: {err}") from None
-    if not isinstance(values, dict) or set(values) - {"ppo", "foam"}:
-        raise UsageError(f'--config {path} must hold a JSON object with "ppo" and/or "foam" sections')
-    for name in ("ppo", "foam"):
-        if not isinstance(values.get(name, {}), dict):
-            raise UsageError(f'--config {path}: "{name}" must be a JSON object')
-    return values
-
-
 # ---- running ------------------------------------------------------------------------------------------
 def run_train_foam(args: argparse.Namespace, on_chunk: Any = None) -> int:
     """Entry point of train-foam; ``on_chunk(updates_done)`` is a test hook."""
-    plan = _resume_plan(args) if args.resume else _fresh_plan(args)
+    plan = resume_plan(args) if args.resume else fresh_plan(args)
     if args.print_config:
         from jaxsimrl.envs.foam_config import foam_config_to_json
 
         sys.stdout.write(json.dumps({"ppo": plan.ppo.to_dict(), "foam": foam_config_to_json(plan.foam),
                                      "episodes": plan.episodes, "pool": plan.pool}, indent=2) + "\n")
         return 0
-    from foam_bridge.errors import CaseError, OpenFOAMNotFoundError
+    from foam_bridge.errors import CaseError, ClusterError, OpenFOAMNotFoundError
     from jaxsimrl.envs.host import HostEnvError
     from jaxsimrl.runs.run_dir import RunDir
 
@@ -295,7 +111,7 @@ def run_train_foam(args: argparse.Namespace, on_chunk: Any = None) -> int:
         raise UsageError(str(err)) from None
     try:
         summary = _train(plan, run, on_chunk, args.tensorboard)
-    except (CaseError, OpenFOAMNotFoundError) as err:
+    except (CaseError, ClusterError, OpenFOAMNotFoundError) as err:
         _drop_if_empty(run, plan)
         raise UsageError(str(err)) from None
     except KeyboardInterrupt:
@@ -316,15 +132,21 @@ def _train(plan: FoamPlan, run: Any, on_chunk: Any, tensorboard: bool = False) -
     from jaxsimrl.agents.ppo import make_train
     from jaxsimrl.envs.foam import foam_vec_env
     from jaxsimrl.runs.checkpoint import Checkpoints
-    from jaxsimrl.runs.episodes import EpisodeLog
+    from jaxsimrl.runs.episodes import EPISODES_FILE, EpisodeLog
     from jaxsimrl.runs.progress import FoamProgress
     from jaxsimrl.runs.run_dir import MetricsLog
     from jaxsimrl.runs.tensorboard import tensorboard_log
     from jaxsimrl.runs.training import Session, train
 
-    done = run.checkpoint_steps()[-1] if plan.resume else 0
-    episodes = EpisodeLog.load(run.path / "episodes.csv", done) if plan.resume else EpisodeLog(
-        run.path / "episodes.csv")
+    steps = run.checkpoint_steps() if plan.resume else []
+    done = steps[-1] if steps else 0
+    # config.json first: from here on the directory is a run that --resume accepts (it starts over
+    # while there is no checkpoint)
+    record = _config_record(plan)
+    run.write_config(record)
+    episodes = EpisodeLog.load(run.path / EPISODES_FILE, done)  # rows past the checkpoint are dropped
+    if plan.resume and not done:
+        _start_over(run, episodes)
     cursor = {"update": done + 1}
     # the batch is re-seeded from the trainer's key at every reset; this seed only names its streams
     vec = foam_vec_env(plan.foam, plan.ppo.num_envs, plan.pool, seed=plan.seed,
@@ -334,26 +156,57 @@ def _train(plan: FoamPlan, run: Any, on_chunk: Any, tensorboard: bool = False) -
         trainer = make_train(plan.ppo, vec=vec, devices=jax.devices()[:1])
         with Checkpoints(run.checkpoints) as checkpoints, tensorboard_log(run.path, tensorboard) as tb:
             key = jax.random.PRNGKey(plan.seed)
-            if plan.resume:
+            if done:
                 state = _restored(trainer, checkpoints, key, done, vec)
                 log = MetricsLog.load(run, done)
                 log.write()
             else:
                 state, log = _initial_state(trainer, key, plan.init_from), MetricsLog(run)
             vec.raise_if_failed()
-            record = _config_record(plan)
-            run.write_config(record)
             session = Session(run, _HostTrainer(trainer, vec, episodes, cursor), log, checkpoints,
                               meta={"config": record}, summary_extra={"run_dir": str(run.path)},
                               before_checkpoint=lambda _: episodes.flush(),
-                              summary_hook=lambda s: foam_summary(s, episodes, plan), tensorboard=tb,
+                              # workers_lost: workers lost for good (a Ray node died), one line each
+                              summary_hook=lambda s: {**foam_summary(s, episodes, plan),
+                                                      "workers_lost": list(vec.batch.backend.lost)},
+                              tensorboard=tb,
                               checkpoint_meta=lambda: {IN_FLIGHT: vec.batch.snapshot()})
             with FoamProgress(plan.episodes, episodes, plan.pool, log) as progress:
+                episodes.on_add = progress.episode_ended  # the bar counts episodes as they end
+                resumed_with = len(episodes.rows)
                 train(session, state, done, progress, on_chunk,
-                      until=lambda: len(episodes.rows) >= plan.episodes)
+                      until=lambda: _target_reached(episodes, plan, resumed_with),
+                      on_interrupt=_interrupt_handler(run, plan, progress))
             return session.write_summary()
     finally:
         vec.batch.close()
+
+
+def _start_over(run: Any, episodes: Any) -> None:
+    """A resumed run without a checkpoint (killed before its first one was saved) starts over from its
+    config.json: the rows it wrote for updates that no checkpoint kept are truncated, so none is
+    written twice."""
+    from jaxsimrl.runs.run_dir import MetricsLog
+    from jaxsimrl.runs.tensorboard import TENSORBOARD_DIR
+
+    sys.stderr.write(f"jaxsimrl train-foam: {run.path} has no checkpoint (it stopped before its first "
+                     f"update was saved): starting it over from its config.json\n")
+    MetricsLog(run).write()
+    episodes.flush()
+    shutil.rmtree(run.path / TENSORBOARD_DIR, ignore_errors=True)
+
+
+def _target_reached(episodes: Any, plan: FoamPlan, resumed_with: int) -> bool:
+    """True at the episode target. Checked after each update is saved: a run whose episodes all failed
+    the same way (EpisodeLog.systematic_failure) stops there with that cause, resumable once it is fixed
+    (the rule waits for an update of this session: ``resumed_with`` rows were there at its start)."""
+    from jaxsimrl.envs.host import HostEnvError
+
+    cause = episodes.systematic_failure(plan.ppo.num_envs) if len(episodes.rows) > resumed_with else None
+    if cause is not None:
+        raise HostEnvError(f"all {len(episodes.rows)} episodes so far failed the same way, {cause}; fix the "
+                           f"case or settings, then resume")
+    return len(episodes.rows) >= plan.episodes
 
 
 def _initial_state(trainer: Any, key: Any, start: Any) -> Any:
@@ -421,7 +274,10 @@ def foam_summary(summary: dict[str, Any], episodes: Any, plan: FoamPlan) -> dict
     """summary.json entries of a foam run (from episodes.csv and the metrics rows' training time)."""
     wall = float(summary.get("wall_time_s", 0.0))
     count = len(episodes.rows)
+    # num_updates: none is planned, the episode target sets the length (trainer.num_updates is only a
+    # safety bound, see total_steps_for)
     return {"episodes": count, "episodes_target": plan.episodes, "complete": count >= plan.episodes,
+            "num_updates": None,
             "episodes_per_hour": count / wall * 3600 if wall > 0 else math.nan,
             "final_mean_iterations": episodes.moving_iterations(),
             # None where a row lacks the cost (episodes of a run written before it was recorded)
@@ -461,20 +317,50 @@ def _drop_if_empty(run: Any, plan: FoamPlan) -> None:
 
 
 def _interrupted(run: Any, plan: FoamPlan) -> int:
+    sys.stderr.write(f"jaxsimrl train-foam: interrupted; {_stopped_text(run, plan)}\n")
+    return INTERRUPTED
+
+
+def _stopped_text(run: Any, plan: FoamPlan) -> str:
+    """What an interrupted run left: the last checkpoint and how to resume, or nothing (a fresh run
+    stopped before its first checkpoint, whose directory is removed)."""
     steps = run.checkpoint_steps()
     if steps:
-        sys.stderr.write(f"jaxsimrl train-foam: interrupted; saved up to update {steps[-1]}. Resume with: "
-                         f"jaxsimrl train-foam --resume {run.path}\n")
-    else:
-        _drop_if_empty(run, plan)
-        sys.stderr.write("jaxsimrl train-foam: interrupted before the first update; nothing to resume\n")
-    return INTERRUPTED
+        return f"saved up to update {steps[-1]}. Resume with: jaxsimrl train-foam --resume {run.path}"
+    if plan.resume:
+        return f"no checkpoint yet; --resume {run.path} starts it over"
+    _drop_if_empty(run, plan)
+    return "stopped before the first update was saved; nothing to resume"
+
+
+def _interrupt_handler(run: Any, plan: FoamPlan, progress: Any) -> Callable[[int], None]:
+    """What a Ctrl-C during an update does, at once (runs.training.interrupts_deferred): the first is
+    acknowledged and stops the run after the update in flight is saved; the second ends the process
+    now, as a kill would (the solvers die with their workers, everything on disk is whole), and the run
+    resumes from its last checkpoint."""
+    def react(count: int) -> None:
+        if count == 1:
+            sys.stderr.write(f"jaxsimrl train-foam: stopping after this update (waiting for {plan.pool} "
+                             f"solver worker(s))... press Ctrl-C again to stop now, losing the update in "
+                             f"flight\n")
+            sys.stderr.flush()
+            return
+        progress.stop()  # gives the terminal back
+        sys.stderr.write(f"jaxsimrl train-foam: stopped now, without the update in flight; "
+                         f"{_stopped_text(run, plan)}\n")
+        sys.stderr.flush()
+        os._exit(INTERRUPTED)
+
+    return react
 
 
 def _print_summary(summary: dict[str, Any], run: Any) -> None:
     failures = ", ".join(f"{k} {v}" for k, v in summary["failures"].items()) or "none"
+    target = summary["episodes_target"]
+    extra = summary["episodes"] - target
+    more = (f" (target {target}; the {extra} more ended in the update that reached it)" if extra > 0 else "")
     sys.stdout.write(
-        f"done: {summary['episodes']} episodes in {summary['updates']} updates, "
+        f"done: {summary['episodes']} episodes{more} in {summary['updates']} updates, "
         f"{summary['wall_time_s']:.0f} s "
         f"({summary['episodes_per_hour']:.0f} episodes/hour, pool utilisation "
         f"{summary['pool_utilisation']:.0%})\n"

@@ -19,6 +19,7 @@ from rich.progress import (
     TimeElapsedColumn,
     TimeRemainingColumn,
 )
+from rich.table import Column
 
 
 class TrainingProgress:
@@ -75,7 +76,10 @@ class TrainingProgress:
 class FoamProgress:
     """Progress of a host-env (OpenFOAM) run, by episodes: done of the target, the moving mean of the
     iterations to converge over the last 100 episodes (what the paper plots), failures by outcome,
-    episodes per hour and the pool's utilisation. A live bar on a TTY, one plain line per update off it."""
+    episodes per hour and the pool's utilisation. A live bar on a TTY, one plain line per update off it.
+    The bar counts every episode as it ends (:meth:`episode_ended`, hooked to the episode log), not only
+    after each update; the count comes first and the statistics last, so a narrow terminal (80 columns)
+    cuts the statistics, never the count."""
 
     def __init__(self, target: int, episodes: Any, pool: int, metrics: Any, stream: TextIO | None = None,
                  live: bool | None = None) -> None:
@@ -89,17 +93,31 @@ class FoamProgress:
     def __enter__(self) -> FoamProgress:
         if self.live:
             self._progress = Progress(
-                TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
-                TextColumn("episodes  {task.fields[stats]}"), TimeElapsedColumn(), TimeRemainingColumn(),
-                console=self.console)
+                TextColumn("[bold]{task.description}", table_column=Column(no_wrap=True)),
+                MofNCompleteColumn(table_column=Column(no_wrap=True)),
+                TextColumn("episodes", table_column=Column(no_wrap=True)), BarColumn(bar_width=16),
+                TimeElapsedColumn(), TimeRemainingColumn(),
+                TextColumn("{task.fields[stats]}", table_column=Column(no_wrap=True, overflow="ellipsis",
+                                                                       ratio=1)),
+                console=self.console, expand=True)
             self._progress.start()
             self._task = self._progress.add_task("compiling + first update", total=self.target,
-                                                 completed=len(self.episodes.rows), stats="-")
+                                                 completed=self.episodes.count, stats="-")
         return self
 
     def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+    def stop(self) -> None:
+        """End the live bar (idempotent), e.g. before the process leaves on a second Ctrl-C."""
         if self._progress is not None:
             self._progress.stop()
+
+    def episode_ended(self) -> None:
+        """Count an episode that has just ended (called from the thread that steps the envs)."""
+        if self._progress is not None:
+            self._progress.update(self._task, description="training",
+                                  completed=min(self.episodes.count, self.target))
 
     def stats(self) -> str:
         """The numbers after the episode count, as one short text."""
@@ -117,7 +135,7 @@ class FoamProgress:
     def update(self, env_steps: int, steps_per_s: float, mean_return: float, update: int,
                num_updates: int) -> None:
         """Report the state after an update (TrainingProgress's signature; the episode log has the rest)."""
-        count = len(self.episodes.rows)
+        count = self.episodes.count
         if self._progress is not None:
             self._progress.update(self._task, description="training", completed=min(count, self.target),
                                   stats=self.stats())
