@@ -181,3 +181,20 @@ def test_closing_summary_and_rerun_into_same_out_is_refused(tiny_run, capsys):
     assert code == 2 and "may only be raised" in err and len(err.splitlines()) == 1
     code, out, err = run_cli(["train-lorenz", "--resume", str(tiny_run)], capsys)
     assert code == 0 and "done: 5 updates, 320 env steps" in out and "eval-lorenz" in out
+
+
+def test_resuming_a_finished_annealed_run_with_more_steps_trains_at_a_nonzero_rate(tmp_path, capsys):
+    run = tmp_path / "annealed"
+    config = write_json(tmp_path / "anneal.json", {"anneal_lr": True})
+    assert main(["train-lorenz", *TINY_FLAGS, "--config", str(config), "--out", str(run)]) == 0
+    rows = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
+    assert rows[-1]["learning_rate"] < rows[0]["learning_rate"]  # it decayed towards 0 at update 5
+    capsys.readouterr()
+    code, _, err = run_cli(["train-lorenz", "--resume", str(run), "--total-steps", "640"], capsys)
+    assert code == 0
+    rows = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
+    assert [row["update"] for row in rows] == list(range(1, 11))
+    later = [row["learning_rate"] for row in rows[5:]]
+    # the extension learns: the rate of a run planned for 10 updates, decaying from lr / 2
+    assert later[0] == pytest.approx(1e-3 * 5 / 10, rel=1e-4) and later == sorted(later, reverse=True)
+    assert later[-1] > 0 and "decays to 0 at update 10" in err  # and it says so

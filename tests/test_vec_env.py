@@ -166,17 +166,22 @@ def test_std_floor_keeps_a_feature_constant_at_reset_finite():
     assert float(norm.normalize(stats, jnp.array([1.5, 0.05]), clip=10.0)[1]) == 10.0
 
 
-def test_raising_total_steps_continues_an_annealed_rate_from_where_it_was():
+def test_raising_total_steps_follows_the_new_horizon_and_revives_a_finished_anneal():
     config = PPOConfig(steps_per_update=8000, total_steps=80_000, anneal_lr=True, lr=1e-3)  # 10 updates
-    assert config.learning_rate(6) == pytest.approx(4e-4)
-    longer = config.with_total_steps(160_000, updates_done=6)  # now 20 updates
-    assert longer.learning_rate(6) == pytest.approx(4e-4)  # no jump back up ...
-    assert longer.learning_rate(13) == pytest.approx(2e-4) and longer.learning_rate(20) == 0.0  # ... decays
+    assert config.learning_rate(6) == pytest.approx(4e-4) and config.learning_rate(10) == 0.0
+    longer = config.with_total_steps(160_000)  # now 20 updates: the decay of a run planned for 20
+    assert longer.learning_rate(6) == pytest.approx(7e-4)
+    # a finished run (its rate reached 0) trains on at a rate > 0, down to 0 at the new end
+    assert longer.learning_rate(10) == pytest.approx(5e-4) and longer.learning_rate(20) == 0.0
     _, schedule = make_optimizer(longer, longer.num_updates)
     per_update = longer.update_epochs * longer.num_minibatches
-    for update in (6, 13, 19):
+    for update in (6, 10, 13, 19):
         assert float(schedule(update * per_update)) == pytest.approx(longer.learning_rate(update), rel=1e-5)
-    assert config.with_total_steps(80_000, 6) == config  # unchanged total: unchanged config
+    assert config.with_total_steps(80_000) == config  # unchanged total: unchanged config
+    # a run re-anchored by an older version keeps its anchor
+    old = PPOConfig.from_dict({**config.to_dict(), "total_steps": 160_000, "anneal_start_update": 10,
+                               "anneal_start_lr": 1e-4})
+    assert old.with_total_steps(240_000).learning_rate(15) == pytest.approx(1e-4 * (1 - 5 / 20))
 
 
 def test_ctrl_c_during_a_chunk_saves_that_chunk(tmp_path):

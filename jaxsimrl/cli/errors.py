@@ -58,5 +58,25 @@ def seed_type(bits: int | None = None) -> Callable[[str], int]:
     return parse
 
 
+def seed_list(bits: int | None = None) -> Callable[[str], tuple[int, ...]]:
+    """argparse type: distinct seeds as a range ``0-15`` (both ends included) or a list ``0,3,7``, each
+    as :func:`seed_type` accepts."""
+    one = seed_type(bits)
+
+    def parse(text: str) -> tuple[int, ...]:
+        if "-" in text.strip("-"):
+            first, _, last = text.partition("-")
+            low, high = one(first), one(last)
+            if high < low:
+                raise argparse.ArgumentTypeError(f"empty seed range {text!r} (write LOW-HIGH)")
+            return tuple(range(low, high + 1))
+        seeds = tuple(one(part) for part in text.split(","))
+        if len(set(seeds)) != len(seeds):
+            raise argparse.ArgumentTypeError(f"seeds repeat in {text!r}: each agent needs its own")
+        return seeds
+
+    return parse
+
+
 def fail(message: str) -> NoReturn:
     raise UsageError(message)

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from jaxsimrl.cli.errors import UsageError, positive_float, positive_int, seed_type
+from jaxsimrl.cli.errors import UsageError, positive_float, positive_int, seed_list, seed_type
 
 # PPOConfig fields with a command-line flag: (flag, type, help). Their defaults are PPOConfig's.
 KNOBS: tuple[tuple[str, Any, str], ...] = (
@@ -42,6 +42,7 @@ KNOBS: tuple[tuple[str, Any, str], ...] = (
                                         "checkpoint granularity"),
 )
 NETWORKS = ("lstm", "mlp")
+Sweep = tuple[tuple[str, tuple[float, ...]], ...]  # (field, each agent's value), hashable for the caches
 INTERRUPTED = 130
 
 
@@ -64,6 +65,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     train.add_argument("--seed", type=seed_type(32), help="PRNG seed; the same seed and config give the "
                        "same "
                        "numbers on the same machine (default: 0)")
+    train.add_argument("--seeds", type=seed_list(32), metavar="LIST", help="train one independent agent "
+                       "per seed in one jitted call, e.g. 0-15 or 0,3,7; agent i gives the numbers of --seed "
+                       "SEEDS[i] alone (up to float rounding)")
+    train.add_argument("--sweep", type=sweep_item, nargs="+", metavar="NAME=V1,V2", help="one agent per "
+                       "combination of these values (the cross product, times each seed of --seeds), in one "
+                       "jitted call; NAME is a scalar of the update (lr, ent_coef, clip_eps, gamma, "
+                       "gae_lambda, vf_coef), e.g. --sweep lr=1e-4,2.5e-4 ent_coef=0,0.01")
     train.add_argument("--out", metavar="DIR", help="run directory to create; must not hold anything yet "
                        "(default: runs/lorenz-<UTC timestamp>)")
     train.add_argument("--resume", metavar="RUN_DIR", help="continue RUN_DIR from its last checkpoint with "
@@ -84,6 +92,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     evaluate.add_argument("run_dir", metavar="RUN_DIR", help="a run directory written by train-lorenz")
     evaluate.add_argument("--episodes", type=positive_int, default=32, metavar="N",
                           help="4000-step episodes from random initial states (default: 32)")
+    evaluate.add_argument("--agent", type=seed_type(), metavar="K", help="of a --seeds run, evaluate agent K "
+                          "only (default: every agent, with the statistics across agents)")
     evaluate.add_argument("--stochastic", action="store_true",
                           help="sample actions from the policy instead of taking its mean action")
     evaluate.add_argument("--seed", type=seed_type(32), default=0, help="PRNG seed of the initial states "
@@ -103,6 +113,8 @@ class TrainPlan:
     run_path: Path
     resume: bool
     record: dict[str, Any]  # config.json of a resumed run
+    seeds: tuple[int, ...] | None = None  # each agent's seed in a batch (--seeds, --sweep); None: one agent
+    sweep: Sweep = ()  # the swept fields of a --sweep
 
 
 def run_train(args: argparse.Namespace, on_chunk: Any = None) -> int:
@@ -113,11 +125,13 @@ def run_train(args: argparse.Namespace, on_chunk: Any = None) -> int:
         return 0
     from jaxsimrl.runs.checkpoint import Checkpoints
     from jaxsimrl.runs.progress import TrainingProgress
-    from jaxsimrl.runs.run_dir import RunDir
+    from jaxsimrl.runs.run_dir import RunDir, summarise, summarise_agents
     from jaxsimrl.runs.tensorboard import tensorboard_log
     from jaxsimrl.runs.training import Session, train
 
-    trainer = lorenz_trainer(plan.config)
+    seeds = plan.seeds
+    trainer = (lorenz_trainer(plan.config) if seeds is None
+               else lorenz_batch(plan.config, len(seeds), plan.sweep))
     try:
         run = RunDir(plan.run_path) if plan.resume else RunDir.create(plan.run_path)
     except ValueError as err:
@@ -127,17 +141,35 @@ def run_train(args: argparse.Namespace, on_chunk: Any = None) -> int:
             state, done, log = _starting_point(plan, trainer, run, checkpoints)
             record = _config_record(plan)
             run.write_config(record)
-            extra = {"run_dir": str(run.path), "seed": plan.seed, "network": plan.config.network}
-            session = Session(run, trainer, log, checkpoints, meta={"config": record}, summary_extra=extra,
-                              tensorboard=tb)
+            session = Session(run, trainer, log, checkpoints, meta={"config": record},
+                              summary_extra=_summary_extra(plan, run), tensorboard=tb,
+                              summarise_rows=summarise if plan.seeds is None else summarise_agents)
             total = trainer.num_updates * plan.config.steps_per_update
             with TrainingProgress(total, log.env_steps) as progress:
                 train(session, state, done, progress, on_chunk)
             summary = session.write_summary()
     except KeyboardInterrupt:
         return _interrupted(run)
+    except UsageError:  # e.g. a batch too large for memory, found before its first chunk
+        if not plan.resume:
+            shutil.rmtree(run.path, ignore_errors=True)  # empty or absent when this run started
+        raise
     _print_summary(summary, run)
     return 0
+
+
+def _summary_extra(plan: TrainPlan, run: Any) -> dict[str, Any]:
+    """What summary.json repeats from the plan: where, which seed(s), which network."""
+    return {"run_dir": str(run.path), **_agents_record(plan), "network": plan.config.network}
+
+
+def _agents_record(plan: TrainPlan) -> dict[str, Any]:
+    """Who the agents are, for config.json and summary.json: ``seed``; or each agent's ``seeds`` and, for
+    a sweep, ``sweep`` (each agent's value of every swept field)."""
+    if plan.seeds is None:
+        return {"seed": plan.seed}
+    sweep = {"sweep": {name: list(values) for name, values in plan.sweep}} if plan.sweep else {}
+    return {"seeds": list(plan.seeds), **sweep}
 
 
 @functools.lru_cache(maxsize=2)
@@ -153,24 +185,49 @@ def lorenz_trainer(config: Any) -> Any:
         raise UsageError(f"invalid config: {err}") from None
 
 
+@functools.lru_cache(maxsize=2)
+def lorenz_batch(config: Any, num_agents: int, sweep: Sweep = ()) -> Any:
+    """A batch of ``num_agents`` agents of ``config`` on the Lorenz env, with each agent's values of the
+    ``sweep``ed fields (cached as :func:`lorenz_trainer`)."""
+    from jaxsimrl.agents.ppo.batch import SeedBatch
+
+    return SeedBatch(lorenz_trainer(config), num_agents, dict(sweep))
+
+
 def _starting_point(plan: TrainPlan, trainer: Any, run: Any, checkpoints: Any) -> tuple[Any, int, Any]:
-    """(state, updates done, metrics log): fresh, or restored from the run's last checkpoint."""
+    """(state, updates done, metrics log): fresh, or restored from the run's last checkpoint. A batch's
+    chunk is compiled here, so that one too large for memory is refused before anything is written."""
     import jax
 
+    from jaxsimrl.agents.ppo.batch import seed_keys
     from jaxsimrl.runs.run_dir import MetricsLog
 
-    key = jax.random.PRNGKey(plan.seed)
+    key = jax.random.PRNGKey(plan.seed) if plan.seeds is None else seed_keys(plan.seeds)
     if not plan.resume:
-        return trainer.init(key), 0, MetricsLog(run)
+        state = trainer.init(key)
+        _check_memory(trainer, state)
+        return state, 0, MetricsLog(run)
     try:
         done = checkpoints.latest_step()  # a checkpoint is named by the number of updates done
         # eval_shape gives the state's structure without computing it; orbax restores the saved shardings.
         state, _ = checkpoints.restore(jax.eval_shape(trainer.init, key), done)
     except ValueError as err:
         raise UsageError(f"cannot resume: {err}") from None
+    _check_memory(trainer, state)
     log = MetricsLog.load(run, done)  # drops rows of a chunk whose checkpoint never landed
     log.write()
     return state, done, log
+
+
+def _check_memory(trainer: Any, state: Any) -> None:
+    """Compile a batch's chunk and refuse it in one line if it would not fit (one agent: no check)."""
+    from jaxsimrl.agents.ppo.batch import BatchTooLarge, SeedBatch
+
+    if isinstance(trainer, SeedBatch):
+        try:
+            trainer.compile(state)
+        except BatchTooLarge as err:
+            raise UsageError(str(err)) from None
 
 
 def _config_record(plan: TrainPlan) -> dict[str, Any]:
@@ -180,7 +237,7 @@ def _config_record(plan: TrainPlan) -> dict[str, Any]:
     import jax
 
     now = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
-    base = plan.record if plan.resume else {"env": "lorenz", "seed": plan.seed, "created_utc": now}
+    base = plan.record if plan.resume else {"env": "lorenz", **_agents_record(plan), "created_utc": now}
     record = {**base, "ppo": plan.config.to_dict(), "jax_version": jax.__version__,
               "jaxsimrl_version": version("jaxsimrl"), "devices": [str(device) for device in jax.devices()]}
     if plan.resume:
@@ -205,15 +262,24 @@ def _interrupted(run: Any) -> int:
 
 def _print_summary(summary: dict[str, Any], run: Any) -> None:
     final = summary["final_mean_return"]
-    final_text = "n/a (no episode ended)" if not math.isfinite(final) else (
-        f"{final:,.1f} (over the {summary['final_return_episodes']} episodes ending in updates "
-        f"{summary['final_return_updates'][0]}-{summary['final_return_updates'][-1]})")
+    final_text = "n/a (no episode ended)" if not math.isfinite(final) else _final_text(summary)
     sys.stdout.write(
         f"done: {summary['updates']} updates, {summary['total_steps']:,} env steps in "
         f"{summary['wall_time_s']:.1f} s ({summary['steps_per_s']:,.0f} steps/s)\n"
         f"  final mean episode return: {final_text}\n"
         f"  run directory: {run.path} (config.json, metrics.jsonl/.csv, summary.json, checkpoints/)\n"
         f"  evaluate with: jaxsimrl eval-lorenz {run.path}\n")
+
+
+def _final_text(summary: dict[str, Any]) -> str:
+    """The final mean return line: one agent's episodes, or the mean and range across a batch's agents."""
+    if "agents" in summary:
+        spread = summary["final_mean_return_agents"]
+        return (f"{spread['mean']:,.1f} (mean over {spread['count']} of {summary['num_agents']} agents; "
+                f"min {spread['min']:,.1f}, max {spread['max']:,.1f}; per agent in summary.json)")
+    updates = summary["final_return_updates"]
+    return (f"{summary['final_mean_return']:,.1f} (over the {summary['final_return_episodes']} episodes "
+            f"ending in updates {updates[0]}-{updates[-1]})")
 
 
 def _fresh_plan(args: argparse.Namespace) -> TrainPlan:
@@ -231,14 +297,46 @@ def _fresh_plan(args: argparse.Namespace) -> TrainPlan:
         RunDir.check_new(out)  # before any compiling; RunDir.create checks again
     except ValueError as err:
         raise UsageError(str(err)) from None
-    return TrainPlan(config, 0 if args.seed is None else args.seed, out, resume=False, record={})
+    if args.seed is not None and args.seeds is not None:
+        raise UsageError("give --seed (one agent) or --seeds (a batch), not both")
+    seed = args.seeds[0] if args.seeds else (args.seed or 0)
+    if not args.sweep:
+        return TrainPlan(config, seed, out, resume=False, record={}, seeds=args.seeds)
+    seeds, sweep = _sweep_agents(values, set(_flag_overrides(args)), args.sweep, args.seeds or (seed,))
+    return TrainPlan(config, seed, out, resume=False, record={}, seeds=seeds, sweep=sweep)
+
+
+def _sweep_agents(values: dict[str, Any], flags: set[str], items: list[tuple[str, tuple[float, ...]]],
+                  seeds: tuple[int, ...]) -> tuple[tuple[int, ...], Sweep]:
+    """Each agent's seed and swept values: every combination of ``items``' values (the cross product),
+    each with every seed. Every combination must make a valid config with the other ``values``; a swept
+    field overrides --config's value but may not be a flag too (``flags``)."""
+    import itertools
+
+    from jaxsimrl.agents.ppo.config import PPOConfig
+
+    names = [name for name, _ in items]
+    if len(set(names)) < len(names) or set(names) & flags:
+        twice = next(name for name in names if names.count(name) > 1 or name in flags)
+        raise UsageError(f"--sweep {twice}: give each field once, swept or as a flag")
+    grid = list(itertools.product(*(options for _, options in items)))
+    for combo in grid:
+        try:
+            PPOConfig.from_dict({**values, **dict(zip(names, combo, strict=True))})
+        except (TypeError, ValueError) as err:
+            swept = dict(zip(names, combo, strict=True))
+            raise UsageError(f"invalid --sweep combination {swept}: {err}") from None
+    agents = [(combo, seed) for combo in grid for seed in seeds]
+    sweep = tuple((name, tuple(combo[i] for combo, _ in agents)) for i, name in enumerate(names))
+    return tuple(seed for _, seed in agents), sweep
 
 
 def _resume_plan(args: argparse.Namespace) -> TrainPlan:
     from jaxsimrl.agents.ppo.config import PPOConfig
     from jaxsimrl.runs.run_dir import RunDir
 
-    changed = [flag for flag in ("config", "network", "seed", "out") if getattr(args, flag) is not None]
+    fixed = ("config", "network", "seed", "seeds", "sweep", "out")
+    changed = [flag for flag in fixed if getattr(args, flag) is not None]
     changed += [name for name in _flag_overrides(args) if name != "total_steps"]
     if changed:
         flag = "--" + changed[0].replace("_", "-")
@@ -256,8 +354,33 @@ def _resume_plan(args: argparse.Namespace) -> TrainPlan:
         if args.total_steps < config.total_steps:
             raise UsageError(f"--total-steps {args.total_steps} is below the run's {config.total_steps}: "
                              f"it may only be raised when resuming")
-        config = config.with_total_steps(args.total_steps, run.checkpoint_steps()[-1])
-    return TrainPlan(config, record.get("seed", 0), run.path, resume=True, record=record)
+        config = config.with_total_steps(args.total_steps)
+        if config.anneal_lr:  # the rate follows the new horizon's decay: say where it now stands
+            done = run.checkpoint_steps()[-1]
+            sys.stderr.write(f"jaxsimrl train-lorenz: the annealed learning rate is "
+                             f"{config.learning_rate(done):.3g} at update {done} and decays to 0 at update "
+                             f"{config.num_updates}\n")
+    seeds = tuple(record["seeds"]) if "seeds" in record else None
+    sweep = tuple((name, tuple(values)) for name, values in record.get("sweep", {}).items())
+    return TrainPlan(config, record.get("seed", 0), run.path, resume=True, record=record, seeds=seeds,
+                     sweep=sweep)
+
+
+def sweep_item(text: str) -> tuple[str, tuple[float, ...]]:
+    """argparse type of one --sweep item: NAME=V1,V2,... with NAME a sweepable PPOConfig field."""
+    from jaxsimrl.agents.ppo.config import SWEEPABLE
+
+    name, _, listed = text.partition("=")
+    if name not in SWEEPABLE or not listed:
+        raise argparse.ArgumentTypeError(f"expected NAME=V1,V2 with NAME one of {', '.join(SWEEPABLE)}, got "
+                                         f"{text!r}")
+    try:
+        options = tuple(float(value) for value in listed.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{name}: expected numbers, got {listed!r}") from None
+    if len(set(options)) < len(options):
+        raise argparse.ArgumentTypeError(f"{name}: values repeat in {listed!r}")
+    return name, options
 
 
 def _read_config_file(path: str) -> dict[str, Any]:
@@ -287,23 +410,34 @@ def run_eval(args: argparse.Namespace) -> int:
 
     try:
         report = evaluate_run(Path(args.run_dir), episodes=args.episodes, stochastic=args.stochastic,
-                              seed=args.seed)
+                              seed=args.seed, agent=args.agent)
     except ValueError as err:
         raise UsageError(str(err)) from None
-    _print_eval(report, Path(args.run_dir))
+    _print_eval(report, Path(args.run_dir), "" if args.agent is None else f"-agent-{args.agent}")
     return 0
 
 
-def _print_eval(report: dict[str, Any], run_dir: Path) -> None:
-    agent, base = report, report["uncontrolled"]
+def _print_eval(report: dict[str, Any], run_dir: Path, suffix: str) -> None:
+    base = report["uncontrolled"]
     mode = "sampled" if report["stochastic"] else "mean (deterministic)"
+    who = f", agent {report['agent']} (seed {report['agent_seed']})" if "agent" in report else ""
     sys.stdout.write(
-        f"eval-lorenz {run_dir}: {report['episodes']} episodes of {report['episode_steps']} steps from "
+        f"eval-lorenz {run_dir}{who}: {report['episodes']} episodes of {report['episode_steps']} steps from "
         f"random initial states, {mode} actions, seed {report['seed']}\n"
-        f"  controlled:   mean return {agent['mean_return']:10.1f} (std {agent['std_return']:.1f}, "
-        f"min {agent['min_return']:.1f}, max {agent['max_return']:.1f})   "
-        f"|velocity| > {report['v_threshold']:g}: {agent['fraction_above_threshold']:.1%} of steps\n"
+        f"  controlled:   {_controlled_text(report)}   "
+        f"|velocity| > {report['v_threshold']:g}: {report['fraction_above_threshold']:.1%} of steps\n"
         f"  uncontrolled: mean return {base['mean_return']:10.1f} (std {base['std_return']:.1f}, "
         f"min {base['min_return']:.1f}, max {base['max_return']:.1f})   "
         f"|velocity| > {report['v_threshold']:g}: {base['fraction_above_threshold']:.1%} of steps\n"
-        f"  wrote {run_dir / 'eval.json'} and {run_dir / 'eval_trajectory.png'}\n")
+        f"  wrote {run_dir / f'eval{suffix}.json'} and {run_dir / f'eval_trajectory{suffix}.png'}\n")
+
+
+def _controlled_text(report: dict[str, Any]) -> str:
+    """One agent's return statistics, or a batch's mean return and its spread across agents."""
+    if "agents" in report:
+        spread = report["mean_return_agents"]
+        return (f"mean return {report['mean_return']:10.1f} (mean of {report['num_agents']} agents; per "
+                f"agent: median {spread['median']:.1f}, min {spread['min']:.1f}, max {spread['max']:.1f}; "
+                f"trajectory of agent {report['plotted_agent']})")
+    return (f"mean return {report['mean_return']:10.1f} (std {report['std_return']:.1f}, "
+            f"min {report['min_return']:.1f}, max {report['max_return']:.1f})")

@@ -11,11 +11,19 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
-from jaxsimrl.runs.run_dir import MetricsLog, Row, RunDir, rows_with_episodes
+from jaxsimrl.runs.episodes import MOVING_WINDOW
+from jaxsimrl.runs.run_dir import MetricsLog, Row, RunDir, agent_rows, rows_with_episodes
+
+
+class EpisodeIterations(NamedTuple):
+    """SIMPLE iterations per episode of a foam run (episodes.csv), and which episodes failed."""
+
+    iterations: np.ndarray  # (E,) iterations run; for a failed episode, where the solver stopped
+    failed: np.ndarray  # (E,) bool: the solver crashed, diverged or hung (foam_bridge.env.FAILURES)
 
 
 class EpisodeCurve(NamedTuple):
@@ -58,9 +66,36 @@ def column(rows: list[Row], name: str) -> np.ndarray:
     return np.array([math.nan if v is None else float(v) for v in values])
 
 
-def read_episode_iterations(path: Path) -> np.ndarray | None:
-    """The ``iterations`` column of a foam run's episodes.csv (one row per episode), if it has one."""
+def _draw_returns(ax: Any, rows: list[Row], steps: np.ndarray, window: int) -> None:
+    """One agent's mean return per update (dots) and its ``window``-episode moving average."""
+    curve = episode_curve(rows, window)
+    ax.plot(steps, column(rows, "mean_episode_return"), ".", color="0.6", ms=4, label="per update")
+    ax.plot(curve.env_steps, curve.moving_average, color="tab:blue", label=f"{window}-episode average")
+
+
+def agent_columns(rows: list[Row], name: str) -> np.ndarray:
+    """One metric of a batch run (rows with an ``agent`` column) as (updates, agents) floats."""
+    return np.stack([column(own, name) for own in agent_rows(rows).values()], axis=1)
+
+
+def draw_band(ax: Any, steps: np.ndarray, values: np.ndarray, label: str) -> None:
+    """``values`` (updates, agents) as the mean across agents (the agents that have a value) with a band
+    from the lowest to the highest agent."""
+    import warnings
+
+    with warnings.catch_warnings():  # an update where no agent has a value (no episode ended) stays NaN
+        warnings.simplefilter("ignore", RuntimeWarning)
+        mean, low, high = (np.nanmean(values, 1), np.nanmin(values, 1), np.nanmax(values, 1))
+    (line,) = ax.plot(steps, mean, label=f"{label}: mean of {values.shape[1]} agents (band: min-max)")
+    ax.fill_between(steps, low, high, color=line.get_color(), alpha=0.25, linewidth=0)
+
+
+def read_episode_iterations(path: Path) -> EpisodeIterations | None:
+    """The ``iterations`` and failed ``outcome``s of a foam run's episodes.csv (one row per episode), if it
+    has iterations (a file without an outcome column counts no failure)."""
     import csv
+
+    from foam_bridge.env import FAILURES
 
     if not path.is_file():
         return None
@@ -68,11 +103,12 @@ def read_episode_iterations(path: Path) -> np.ndarray | None:
         rows = list(csv.DictReader(handle))
     if not rows or "iterations" not in rows[0]:
         return None
-    return np.array([float(row["iterations"] or math.nan) for row in rows])
+    return EpisodeIterations(np.array([float(row["iterations"] or math.nan) for row in rows]),
+                             np.array([row.get("outcome") in FAILURES for row in rows], dtype=bool))
 
 
 def plot_training_curves(rows: list[Row], path: str | Path, title: str, window: int = 5,
-                         episode_iterations: np.ndarray | None = None) -> None:
+                         episode_iterations: EpisodeIterations | None = None) -> None:
     """Return, losses, entropy and KL against env steps (plus iterations per episode for a foam run)
     as one PNG at ``path``."""
     from matplotlib.figure import Figure
@@ -82,25 +118,46 @@ def plot_training_curves(rows: list[Row], path: str | Path, title: str, window: 
     panels = 4 + (episode_iterations is not None)
     fig = Figure(figsize=(4.2 * panels, 3.8), layout="constrained")
     axes = fig.subplots(1, panels)
-    steps = column(rows, "env_steps")
-    curve = episode_curve(rows, window)
-    axes[0].plot(steps, column(rows, "mean_episode_return"), ".", color="0.6", ms=4, label="per update")
-    axes[0].plot(curve.env_steps, curve.moving_average, color="tab:blue", label=f"{window}-episode average")
+    batch = "agent" in rows[0]  # a --seeds run: every metric is drawn as its mean across agents and a band
+    steps = column(next(iter(agent_rows(rows).values())) if batch else rows, "env_steps")
+    if batch:
+        draw_band(axes[0], steps, agent_columns(rows, "mean_episode_return"), "per update")
+    else:
+        _draw_returns(axes[0], rows, steps, window)
     axes[0].set_ylabel("mean episode return")
     axes[0].legend(fontsize=8)
     groups = (("policy_loss", "value_loss"), ("entropy",), ("approx_kl", "clip_fraction"))
     for ax, names in zip(axes[1:4], groups, strict=True):
         for name in names:
-            ax.plot(steps, column(rows, name), label=name)
+            if batch:
+                draw_band(ax, steps, agent_columns(rows, name), name)
+            else:
+                ax.plot(steps, column(rows, name), label=name)
         ax.legend(fontsize=8)
     for ax in axes[:4]:
         ax.set_xlabel("env steps")
         ax.ticklabel_format(axis="x", style="sci", scilimits=(0, 0))
         ax.grid(alpha=0.3)
     if episode_iterations is not None:
-        axes[4].plot(np.arange(1, len(episode_iterations) + 1), episode_iterations, ".-", ms=3)
-        axes[4].set_xlabel("episode")
-        axes[4].set_ylabel("solver iterations")
-        axes[4].grid(alpha=0.3)
+        plot_episode_iterations(axes[4], episode_iterations)
     fig.suptitle(title)
     save_figure(fig, path)
+
+
+def plot_episode_iterations(ax: Any, episodes: EpisodeIterations, window: int = MOVING_WINDOW) -> None:
+    """Iterations per episode: those that ended well as grey dots with their ``window``-episode moving
+    mean, failed ones as red crosses where the solver stopped, left out of the mean (a case that crashes at
+    iteration 1 every time must not read as one that converges at once)."""
+    index = np.arange(1, len(episodes.iterations) + 1)
+    ok, failed = ~episodes.failed, episodes.failed
+    ax.plot(index[ok], episodes.iterations[ok], ".", color="0.6", ms=3, label="episode")
+    if ok.any():
+        ax.plot(index[ok], trailing_mean(episodes.iterations[ok], window), color="tab:blue",
+                label=f"{window}-episode mean (failures left out)")
+    if failed.any():
+        ax.plot(index[failed], episodes.iterations[failed], "x", color="tab:red", ms=5,
+                label=f"failed ({int(failed.sum())} of {len(index)}): where the solver stopped")
+    ax.set_xlabel("episode")
+    ax.set_ylabel("solver iterations")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)

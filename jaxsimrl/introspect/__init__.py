@@ -16,7 +16,7 @@ each return plain data (numpy arrays in a NamedTuple) and have a matplotlib ``pl
 
 from jaxsimrl.introspect.foam_factors import FactorHistory, factor_history, plot_factor_history
 from jaxsimrl.introspect.hidden import HiddenPCA, hidden_pca, plot_hidden_pca
-from jaxsimrl.introspect.loading import LoadedPolicy, load_policy
+from jaxsimrl.introspect.loading import LoadedPolicy, load_agents, load_policy
 from jaxsimrl.introspect.sensitivity import Sensitivity, action_sensitivity, plot_sensitivity
 from jaxsimrl.introspect.slices import (
     PolicyProfile,
@@ -29,6 +29,6 @@ from jaxsimrl.introspect.slices import (
 from jaxsimrl.introspect.squashed import ActionDistribution
 
 __all__ = ["ActionDistribution", "FactorHistory", "HiddenPCA", "LoadedPolicy", "PolicyProfile", "PolicySlice",
-           "Sensitivity", "action_sensitivity", "factor_history", "hidden_pca", "load_policy",
+           "Sensitivity", "action_sensitivity", "factor_history", "hidden_pca", "load_agents", "load_policy",
            "plot_factor_history", "plot_hidden_pca", "plot_policy_profile", "plot_policy_slice",
            "plot_sensitivity", "policy_profile", "policy_slice"]

@@ -14,9 +14,10 @@ values in its reward units.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -39,7 +40,7 @@ class LoadedPolicy:
 
     def __init__(self, config: PPOConfig, spec: EnvSpec, params: PolicyParams, update: int = 0,
                  env_steps: int = 0, record: dict[str, Any] | None = None, run_dir: Path | None = None,
-                 seed: int = 0, checkpoint: int | None = None) -> None:
+                 seed: int = 0, checkpoint: int | None = None, agent: int | None = None) -> None:
         self.config = config
         self.env, self.env_params = spec.env, spec.params
         self.policy = Policy(config, spec.env, spec.params)  # the network and action box it trained with
@@ -48,6 +49,7 @@ class LoadedPolicy:
         self.record = record or {}
         self.run_dir = run_dir
         self.checkpoint = checkpoint  # the checkpoint step it was read from (None: not from a run)
+        self.agent = agent  # its index in a --seeds run's batch of agents (None: a one-agent run)
         self.action_low, self.action_high = self.policy.low, self.policy.high
         self.obs_dim = int(params.normalizer.mean.shape[0])
         self.action_dim = int(self.action_low.shape[0])
@@ -73,6 +75,7 @@ class LoadedPolicy:
 
     def __repr__(self) -> str:
         where = f" from {self.run_dir}" if self.run_dir else ""
+        where += f", agent {self.agent}" if self.agent is not None else ""
         return (f"LoadedPolicy({self.record.get('env', 'env')}, network={self.config.network}, update "
                 f"{self.update}, {self.env_steps:,} env steps{where})")
 
@@ -177,9 +180,60 @@ def _forward(config: PPOConfig, action_dim: int, params: Any, normalizer: Normal
     return forward(make_network(config, action_dim).apply, config, params, normalizer, carry, obs, starts)
 
 
-def load_policy(run_dir: str | Path, checkpoint: int | None = None, seed: int = 0) -> LoadedPolicy:
+def load_policy(run_dir: str | Path, checkpoint: int | None = None, seed: int = 0,
+                agent: int | None = None) -> LoadedPolicy:
     """The policy of ``run_dir``'s last checkpoint (or checkpoint ``checkpoint``, numbered by updates
-    done). Any problem with the run is a one-line ValueError."""
+    done); of a ``--seeds`` run (a batch of agents), that of agent ``agent`` (0-based, required there; see
+    :func:`load_agents` for all). Any problem with the run is a one-line ValueError."""
+    return _restore(run_dir, checkpoint).agent_policy(agent, seed)
+
+
+def load_agents(run_dir: str | Path, checkpoint: int | None = None, seed: int = 0) -> list[LoadedPolicy]:
+    """Every agent's policy of a run, read from one checkpoint restore: one for a one-agent run, one per
+    seed of a ``--seeds`` run (in agent order)."""
+    saved = _restore(run_dir, checkpoint)
+    seeds = saved.record.get("seeds")
+    agents = [None] if seeds is None else range(len(seeds))
+    return [saved.agent_policy(agent, seed) for agent in agents]
+
+
+class _Saved(NamedTuple):
+    """A run's config and one checkpoint as saved (a batch run's leaves have a leading agent axis)."""
+
+    run: Any  # RunDir
+    record: dict[str, Any]
+    config: PPOConfig
+    spec: EnvSpec
+    tree: Any
+    meta: dict[str, Any]
+    step: int
+
+    def agent_policy(self, agent: int | None, seed: int) -> LoadedPolicy:
+        """The LoadedPolicy of agent ``agent`` of a batch run, or of the one agent (``agent=None``)."""
+        self._check_agent(agent)
+        tree = self.tree if agent is None else jax.tree.map(lambda leaf: leaf[agent], self.tree)
+        where = f"checkpoint {self.step} in {self.run.checkpoints}"
+        params = _policy_params(tree, self.config, self.spec, where)
+        update = int(np.asarray(tree.get("update_step", self.meta.get("update", self.step))))
+        env_steps = int(self.meta.get("env_steps", update * self.config.steps_per_update))
+        # an agent of a --sweep trained with its own values of the swept fields
+        swept = {name: values[agent] for name, values in self.record.get("sweep", {}).items()}
+        config = dataclasses.replace(self.config, **swept) if swept else self.config
+        return LoadedPolicy(config, self.spec, params, update, env_steps, self.record, self.run.path,
+                            seed, checkpoint=self.step, agent=agent)
+
+    def _check_agent(self, agent: int | None) -> None:
+        seeds = self.record.get("seeds")
+        if seeds is None and agent is not None:
+            raise ValueError(f"{self.run.path} holds one agent (a --seed run): give no agent")
+        if seeds is not None and (agent is None or not 0 <= agent < len(seeds)):
+            shown = ", ".join(map(str, seeds[:4])) + (", ..." if len(seeds) > 4 else "")
+            got = "" if agent is None else f" (got {agent})"
+            raise ValueError(f"{self.run.path} holds {len(seeds)} agents (seeds {shown}): pick one with "
+                             f"agent K in 0..{len(seeds) - 1}{got}")
+
+
+def _restore(run_dir: str | Path, checkpoint: int | None) -> _Saved:
     from jaxsimrl.runs.checkpoint import Checkpoints
     from jaxsimrl.runs.run_dir import RunDir
 
@@ -190,10 +244,7 @@ def load_policy(run_dir: str | Path, checkpoint: int | None = None, seed: int = 
     with Checkpoints(run.checkpoints, writable=False) as checkpoints:
         step = _pick_checkpoint(checkpoints, checkpoint)
         tree, meta = checkpoints.restore_as_saved(step)
-    params = _policy_params(tree, config, spec, f"checkpoint {step} in {run.checkpoints}")
-    update = int(np.asarray(tree.get("update_step", meta.get("update", step))))
-    env_steps = int(meta.get("env_steps", update * config.steps_per_update))
-    return LoadedPolicy(config, spec, params, update, env_steps, record, run.path, seed, checkpoint=step)
+    return _Saved(run, record, config, spec, tree, meta, step)
 
 
 def _config_of(path: Path, record: dict[str, Any]) -> PPOConfig:

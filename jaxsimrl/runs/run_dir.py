@@ -105,6 +105,9 @@ class RunDir:
             raise ValueError(f"{self.config} has no 'ppo' section: not a jaxsimrl run config")
         if not isinstance(record.get("seed", 0), int):
             raise ValueError(f"{self.config}: seed must be an integer, got {record['seed']!r}")
+        seeds = record.get("seeds", [0])
+        if not isinstance(seeds, list) or not seeds or not all(isinstance(seed, int) for seed in seeds):
+            raise ValueError(f"{self.config}: seeds must be a non-empty list of integers, got {seeds!r}")
         return record
 
     def checkpoint_steps(self) -> list[int]:
@@ -200,6 +203,56 @@ def summarise(rows: Sequence[Row], extra: dict[str, Any] | None = None) -> dict[
     }
     summary.update(extra or {})
     return summary
+
+
+def agent_rows(rows: Sequence[Row]) -> dict[int, list[Row]]:
+    """The rows of a batch run (with an ``agent`` column) split by agent, in agent order."""
+    split: dict[int, list[Row]] = {}
+    for row in rows:
+        split.setdefault(int(row["agent"]), []).append(row)
+    return dict(sorted(split.items()))
+
+
+# Per-agent entries of a batch's summary.json; the other entries are the same for every agent.
+_AGENT_KEYS = ("final_mean_return", "final_return_episodes", "final_return_updates", "best_mean_return")
+
+
+def summarise_agents(rows: Sequence[Row], extra: dict[str, Any] | None = None) -> dict[str, Any]:
+    """summary.json of a batch of agents: the totals of :func:`summarise` (shared by the agents; steps are
+    per agent, ``all_agents_steps_per_s`` counts them all), ``agents`` with each agent's returns (and its
+    seed and swept values, from ``extra["seeds"]`` and ``extra["sweep"]``), and across agents the mean
+    of their final and best returns and ``final_mean_return_agents``: count (agents with a finite final
+    return), mean, median, min, max."""
+    extra = dict(extra or {})
+    split = agent_rows(rows)
+    seeds = extra.get("seeds") or list(split)
+    sweep = extra.get("sweep", {})
+    agents = []
+    for agent, own in split.items():
+        full = summarise(own)
+        swept = {name: values[agent] for name, values in sweep.items()}
+        returns = {key: full[key] for key in _AGENT_KEYS}
+        agents.append({"agent": agent, "seed": seeds[agent], **swept, **returns})
+    summary = summarise(next(iter(split.values()), []), extra)
+    for key in _AGENT_KEYS[1:3]:
+        summary.pop(key)  # no single agent's episodes stand for the batch
+    finals = [a["final_mean_return"] for a in agents if math.isfinite(a["final_mean_return"])]
+    bests = [a["best_mean_return"] for a in agents if math.isfinite(a["best_mean_return"])]
+    summary.update(
+        num_agents=len(agents), agents=agents,
+        all_agents_steps_per_s=summary["steps_per_s"] * len(agents),
+        final_mean_return=statistics.fmean(finals) if finals else math.nan,
+        best_mean_return=statistics.fmean(bests) if bests else math.nan,
+        final_mean_return_agents=spread(finals))
+    return summary
+
+
+def spread(values: Sequence[float]) -> dict[str, Any]:
+    """count, mean, median, min and max of ``values`` (NaN when empty)."""
+    if not values:
+        return {"count": 0, **dict.fromkeys(("mean", "median", "min", "max"), math.nan)}
+    return {"count": len(values), "mean": statistics.fmean(values), "median": statistics.median(values),
+            "min": min(values), "max": max(values)}
 
 
 def _json_safe(value: Any) -> Any:

@@ -30,9 +30,11 @@ class TensorBoardWriter:
     def write_rows(self, rows: Iterable[Row]) -> None:
         for row in rows:
             step = int(row["env_steps"])
+            # a batch's agents share the steps: each gets curves of its own
+            prefix = f"train/agent-{row['agent']}" if "agent" in row else "train"
             for name, value in row.items():
-                if name not in _STEP_COLUMNS and _is_scalar(value):
-                    self._writer.add_scalar(f"train/{name}", float(value), global_step=step)
+                if name not in _STEP_COLUMNS and name != "agent" and _is_scalar(value):
+                    self._writer.add_scalar(f"{prefix}/{name}", float(value), global_step=step)
         self._writer.flush()  # a chunk is minutes apart: make it visible now
 
     def close(self) -> None:

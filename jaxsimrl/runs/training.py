@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import os
 import signal
 import threading
 import time
@@ -27,22 +28,60 @@ from jaxsimrl.runs.run_dir import MetricsLog, Row, RunDir, rows_with_episodes, s
 
 ChunkHook = Callable[[int], None]
 StopTest = Callable[[], bool]
+#: Called at once with the number of Ctrl-Cs received during a chunk (1, 2, ...); see interrupts_deferred.
+InterruptHook = Callable[[int], None]
 
 
 @contextlib.contextmanager
-def interrupts_deferred() -> Iterator[None]:
-    """Hold SIGINT back until the block is done, then raise KeyboardInterrupt (main thread only)."""
+def interrupts_deferred(on_interrupt: InterruptHook | None = None) -> Iterator[None]:
+    """Hold SIGINT back until the block is done, then raise KeyboardInterrupt (main thread only).
+
+    ``on_interrupt(count)`` is called at once for every SIGINT, from a thread of its own: the main
+    thread may be inside a jitted call, where Python runs no signal handler until the call returns
+    (the signal's byte arrives through ``signal.set_wakeup_fd``). It may acknowledge the first and end
+    the process on the second."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
     received: list[int] = []
     previous = signal.signal(signal.SIGINT, lambda signum, frame: received.append(signum))
     try:
-        yield
+        with _interrupt_watcher(on_interrupt):
+            yield
     finally:
         signal.signal(signal.SIGINT, previous)
     if received:
         raise KeyboardInterrupt
+
+
+@contextlib.contextmanager
+def _interrupt_watcher(on_interrupt: InterruptHook | None) -> Iterator[None]:
+    """A thread that calls ``on_interrupt`` as soon as the C-level signal handler writes SIGINT's byte to
+    the wakeup pipe (nothing without a hook)."""
+    if on_interrupt is None:
+        yield
+        return
+    read_fd, write_fd = os.pipe()
+    os.set_blocking(write_fd, False)  # the signal handler must never block on it
+
+    def watch() -> None:
+        count = 0
+        while data := os.read(read_fd, 64):  # b"" once write_fd is closed
+            for signum in data:
+                if signum == signal.SIGINT:
+                    count += 1
+                    on_interrupt(count)
+
+    watcher = threading.Thread(target=watch, name="interrupt-watcher", daemon=True)
+    watcher.start()
+    old_fd = signal.set_wakeup_fd(write_fd, warn_on_full_buffer=False)
+    try:
+        yield
+    finally:
+        signal.set_wakeup_fd(old_fd)
+        os.close(write_fd)
+        watcher.join(timeout=5)
+        os.close(read_fd)
 
 
 def chunk_rows(metrics: dict[str, Any], first_update: int, count: int, steps_before: int,
@@ -60,14 +99,30 @@ def chunk_rows(metrics: dict[str, Any], first_update: int, count: int, steps_bef
     return rows
 
 
+def agent_chunk_rows(metrics: dict[str, Any], first_update: int, count: int, steps_before: int,
+                     wall_before: float, chunk_time: float) -> list[Row]:
+    """The rows of a batch of agents' chunk (metrics shaped (updates, agents)): :func:`chunk_rows` of each
+    agent with an ``agent`` column, ordered by update, then agent."""
+    host = {name: np.asarray(value) for name, value in metrics.items()}
+    agents = range(host["env_steps"].shape[1])
+    per_agent = [chunk_rows({name: values[:, agent] for name, values in host.items()}, first_update, count,
+                            steps_before, wall_before, chunk_time) for agent in agents]
+    return [{"update": row["update"], "agent": agent, **row}
+            for update_rows in zip(*per_agent, strict=True) for agent, row in enumerate(update_rows)]
+
+
 def _scalar(value: np.ndarray) -> int | float:
     return int(value) if np.issubdtype(value.dtype, np.integer) else float(value)
 
 
 def latest_return(rows: list[Row]) -> float:
-    """The mean episode return of the newest update in which an episode ended (NaN if none)."""
+    """The mean episode return of the newest update in which an episode ended (NaN if none); for a batch
+    of agents, the mean over the agents with an ending episode in that update."""
     ended = rows_with_episodes(rows)
-    return float(ended[-1]["mean_episode_return"]) if ended else math.nan
+    if not ended:
+        return math.nan
+    newest = [float(row["mean_episode_return"]) for row in ended if row["update"] == ended[-1]["update"]]
+    return sum(newest) / len(newest)
 
 
 @dataclass
@@ -88,11 +143,13 @@ class Session:
     tensorboard: Any = None  # a TensorBoardWriter (runs/tensorboard.py) that gets the rows too, or None
     # More JSON for each checkpoint's record, computed when it is saved (a host env's running episodes).
     checkpoint_meta: Callable[[], dict[str, Any]] | None = None
+    # summary.json from the rows: run_dir.summarise for one agent, run_dir.summarise_agents for a batch.
+    summarise_rows: Callable[[list[Row], dict[str, Any]], dict[str, Any]] = summarise
 
     def write_summary(self) -> dict[str, Any]:
         """Write summary.json from the metrics rows so far and return it."""
         num_updates = self.trainer.num_updates
-        summary = summarise(self.log.rows, {**self.summary_extra, "num_updates": num_updates})
+        summary = self.summarise_rows(self.log.rows, {**self.summary_extra, "num_updates": num_updates})
         summary["complete"] = summary["updates"] >= num_updates
         if self.summary_hook is not None:
             summary.update(self.summary_hook(summary))
@@ -108,7 +165,9 @@ def _run_and_save(session: Session, state: Any, done: int) -> tuple[Any, int, li
     metrics = jax.device_get(metrics)  # waits for the chunk, so the timing below is honest
     chunk_time = time.perf_counter() - started
     count = min(len(metrics["env_steps"]), trainer.num_updates - done)
-    rows = chunk_rows(metrics, done + 1, count, log.env_steps, log.wall_time_s, chunk_time)
+    # one agent's metrics are (updates,); a batch's (updates, agents)
+    to_rows = chunk_rows if np.ndim(metrics["env_steps"]) == 1 else agent_chunk_rows
+    rows = to_rows(metrics, done + 1, count, log.env_steps, log.wall_time_s, chunk_time)
     done += count
     log.extend(rows)
     if session.tensorboard is not None:
@@ -123,19 +182,20 @@ def _run_and_save(session: Session, state: Any, done: int) -> tuple[Any, int, li
     return state, done, rows
 
 
-def train(session: Session, state: Any, done: int, progress: Any,
-          on_chunk: ChunkHook | None = None, until: StopTest | None = None) -> Any:
+def train(session: Session, state: Any, done: int, progress: Any, on_chunk: ChunkHook | None = None,
+          until: StopTest | None = None, on_interrupt: InterruptHook | None = None) -> Any:
     """Run chunks from ``done`` updates until ``trainer.num_updates`` (or until ``until()`` is true);
     returns the final state. ``progress`` is a TrainingProgress or anything with its ``update``.
 
     ``on_chunk(updates_done)`` is called after each chunk is on disk (tests use it to stop a run at a
-    chosen point, as a crash would).
+    chosen point, as a crash would). ``on_interrupt(count)`` is told of each Ctrl-C during a chunk at
+    once (see :func:`interrupts_deferred`).
     """
     trainer, log = session.trainer, session.log
     while done < trainer.num_updates and not (until is not None and until()):
         # Ctrl-C is held back for the whole chunk: a jitted call cannot be interrupted anyway (the
         # signal waits until it returns), and this way the chunk in flight is saved, not dropped.
-        with interrupts_deferred():
+        with interrupts_deferred(on_interrupt):
             state, done, rows = _run_and_save(session, state, done)
         progress.update(log.env_steps, rows[-1]["steps_per_s"], latest_return(log.rows), done,
                         trainer.num_updates)

@@ -17,6 +17,11 @@ NETWORKS = ("lstm", "mlp")
 ACTIVATIONS = ("tanh", "relu")
 
 
+#: Fields whose value may differ between the agents of one batch (scalars the update computes with, not
+#: shapes): ``hparams`` of :class:`jaxsimrl.agents.ppo.batch.SeedBatch`, ``--sweep`` of train-lorenz.
+SWEEPABLE = ("lr", "ent_coef", "clip_eps", "gamma", "gae_lambda", "vf_coef")
+
+
 @dataclass(frozen=True)
 class PPOConfig:
     """Everything that defines one PPO training run (besides the env and the seed)."""
@@ -31,8 +36,8 @@ class PPOConfig:
     lr: float = 2.5e-4
     anneal_lr: bool = False  # linear decay to 0 at the last update
     # Where the linear decay starts: update anneal_start_update at rate anneal_start_lr (None = lr).
-    # Fresh runs decay from lr at update 0; raising total_steps on resume moves the anchor to the resume
-    # point at the rate reached there (see with_total_steps), so the rate never jumps back up.
+    # Fresh runs decay from lr at update 0. Raising total_steps on resume keeps the anchor and moves the
+    # decay's end (see with_total_steps). Runs of older versions were re-anchored at the resume point.
     anneal_start_update: int = 0
     anneal_start_lr: float | None = None
     max_grad_norm: float = 0.5
@@ -81,13 +86,12 @@ class PPOConfig:
         span = max(self.num_updates - self.anneal_start_update, 1)
         return start * min(max(1.0 - (update - self.anneal_start_update) / span, 0.0), 1.0)
 
-    def with_total_steps(self, total_steps: int, updates_done: int) -> PPOConfig:
-        """This config trained further, to ``total_steps``, from ``updates_done`` updates: an annealed
-        rate continues from where it was instead of restarting its decay."""
-        values = {**self.to_dict(), "total_steps": total_steps}
-        if self.anneal_lr and total_steps != self.total_steps:
-            values.update(anneal_start_update=updates_done, anneal_start_lr=self.learning_rate(updates_done))
-        return PPOConfig.from_dict(values)
+    def with_total_steps(self, total_steps: int) -> PPOConfig:
+        """This config trained further, to ``total_steps``. An annealed rate then follows the decay of a
+        run planned for ``total_steps`` from its anchor: from the resume point it is the rate that run
+        would have there, so extending a finished run (whose rate reached 0) trains at a rate > 0. (It
+        jumps up from the old decay's: continuing that one from 0, or nearly 0, would not learn.)"""
+        return PPOConfig.from_dict({**self.to_dict(), "total_steps": total_steps})
 
     # ---- validation / serialisation ------------------------------------------------------------
     def validate(self) -> PPOConfig:

@@ -15,6 +15,7 @@ Host envs run on a mesh of one device (their batch cannot be split between devic
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
 from typing import Any
@@ -102,10 +103,7 @@ class PPOTrainer:
         The metrics have one row per update actually run (fewer in the last chunk; none when training
         is already complete).
         """
-        done = int(state.update_step)
-        state, metrics = self._chunk(state)
-        ran = max(0, min(self.config.updates_per_chunk, self.num_updates - done))
-        return state, {name: value[:ran] for name, value in metrics.items()}
+        return run_chunk_with(self._chunk, state, self.config.updates_per_chunk, self.num_updates)
 
     # ---- pure functions --------------------------------------------------------------------------
     def _init(self, key: jax.Array) -> RunnerState:
@@ -138,14 +136,16 @@ class PPOTrainer:
             return norm.init_normalizer(int(np.prod(self.vec.observation_space().shape)))
         return norm.batch_stats(obs)
 
-    def _update(self, state: RunnerState) -> tuple[RunnerState, dict[str, jax.Array]]:
-        """One PPO update of this device's share of the envs (runs inside shard_map)."""
-        ctx, cfg = self.ctx, self.config
+    def _update(self, state: RunnerState, hparams: dict[str, jax.Array] | None = None
+                ) -> tuple[RunnerState, dict[str, jax.Array]]:
+        """One PPO update of this device's share of the envs (runs inside shard_map). ``hparams``
+        (traced scalars, e.g. one agent's share of a vmapped sweep) replace those config fields."""
+        ctx, cfg, tx, schedule = self._setup(hparams)
         rng, rollout_key, learn_key = jax.random.split(state.rng, 3)
-        lr = self.schedule(state.update_step * cfg.update_epochs * cfg.num_minibatches)
+        lr = schedule(state.update_step * cfg.update_epochs * cfg.num_minibatches)
         state, transitions, carries, episodes = collect(ctx, state, rollout_key)
         last_value = critic_value(ctx, state.params, state.normalizer, state.carry, state.obs, state.starts)
-        params, opt_state, metrics = learn(ctx, self.tx, state.params, state.opt_state, transitions, carries,
+        params, opt_state, metrics = learn(ctx, tx, state.params, state.opt_state, transitions, carries,
                                            last_value, learn_key)
         normalizer = state.normalizer
         if cfg.normalize_obs:
@@ -160,13 +160,28 @@ class PPOTrainer:
                               update_step=update_step)
         return state, metrics
 
-    def _run_updates(self, state: RunnerState, count: int) -> tuple[RunnerState, dict[str, jax.Array]]:
-        """``count`` updates in a scan; updates past ``num_updates`` are skipped (state unchanged)."""
-        template = jax.eval_shape(self._update, state)[1]
+    def _setup(self, hparams: dict[str, jax.Array] | None) -> tuple[RolloutContext, PPOConfig, Any, Any]:
+        """(rollout context, config, optimizer, lr schedule): the trainer's own, or with ``hparams`` in
+        the config. The optimizer's state does not depend on them, so one opt_state fits both."""
+        if not hparams:
+            return self.ctx, self.config, self.tx, self.schedule
+        config = dataclasses.replace(self.config, **hparams)  # no validation runs: values may be traced
+        tx, schedule = make_optimizer(config, self.num_updates)
+        return self.ctx._replace(config=config), config, tx, schedule
+
+    def _run_updates(self, state: RunnerState, count: int, update: Any = None
+                     ) -> tuple[RunnerState, dict[str, jax.Array]]:
+        """``count`` updates in a scan; updates past ``num_updates`` are skipped (state unchanged).
+        ``update`` defaults to one agent's :meth:`_update`; a seed batch passes it vmapped over agents."""
+        update = self._update if update is None else update
+        template = jax.eval_shape(update, state)[1]
 
         def guarded(state: RunnerState, _: None) -> tuple[RunnerState, dict[str, jax.Array]]:
             skip = lambda s: (s, jax.tree.map(lambda t: jnp.zeros(t.shape, t.dtype), template))  # noqa: E731
-            return jax.lax.cond(state.update_step < self.num_updates, self._update, skip, state)
+            # The agents of a batch all have the same update count: testing the first keeps a real branch
+            # (a batched predicate would turn the cond into a select that runs both sides).
+            done = jnp.ravel(state.update_step)[0]
+            return jax.lax.cond(done < self.num_updates, update, skip, state)
 
         return jax.lax.scan(guarded, state, None, length=count)
 
@@ -176,6 +191,16 @@ class PPOTrainer:
 
     def _train(self, key: jax.Array) -> tuple[RunnerState, dict[str, jax.Array]]:
         return self._sharded(self._run_updates, self.num_updates)(self._init(key))
+
+
+def run_chunk_with(chunk: Any, state: RunnerState, per_chunk: int, num_updates: int
+                   ) -> tuple[RunnerState, dict[str, jax.Array]]:
+    """Run the jitted ``chunk`` on ``state`` and keep the metrics rows of the updates actually run (the
+    first axis); shared by one agent and a batch of agents, whose update counts are all equal."""
+    done = int(np.ravel(jax.device_get(state.update_step))[0])
+    state, metrics = chunk(state)
+    ran = max(0, min(per_chunk, num_updates - done))
+    return state, {name: value[:ran] for name, value in metrics.items()}
 
 
 class _BoxOnly:
