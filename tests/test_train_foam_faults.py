@@ -224,6 +224,24 @@ def test_the_bar_counts_episodes_as_they_end_and_keeps_the_count_at_80_columns(t
     assert all(len(row) <= 80 for row in text.splitlines())
 
 
+def test_the_progress_line_says_when_the_pool_has_lost_workers(tmp_path):
+    """A worker lost for good (a Ray node died) shows in every progress line, first, so a narrow
+    terminal does not cut it; a full pool says nothing of it."""
+    from jaxsimrl.runs.progress import FoamProgress
+
+    log = EpisodeLog(tmp_path / "episodes.csv")
+    log.add(0, 1, _episode(250))
+    workers = [4]
+    stream = io.StringIO()
+    with FoamProgress(100, log, 4, _Metrics(), stream=stream, live=False, workers=lambda: workers[0]) as bar:
+        bar.update(0, 0.0, math.nan, 1, 1)
+        workers[0] = 3
+        bar.update(0, 0.0, math.nan, 2, 2)
+    full, smaller = stream.getvalue().splitlines()
+    assert "workers" not in full
+    assert smaller.startswith("update 2  episodes 1/100  workers 3/4  iterations"), smaller
+
+
 def test_ctrl_c_during_a_chunk_is_told_at_once_and_the_chunk_is_still_saved(tmp_path):
     """The main thread waits inside a jitted call (as on an update of host envs): the hook hears of each
     Ctrl-C at once, the chunk is saved, then KeyboardInterrupt stops the loop."""

@@ -171,7 +171,8 @@ def _train(plan: FoamPlan, run: Any, on_chunk: Any, tensorboard: bool = False) -
                                                       "workers_lost": list(vec.batch.backend.lost)},
                               tensorboard=tb,
                               checkpoint_meta=lambda: {IN_FLIGHT: vec.batch.snapshot()})
-            with FoamProgress(plan.episodes, episodes, plan.pool, log) as progress:
+            with FoamProgress(plan.episodes, episodes, plan.pool, log,
+                              workers=vec.batch.backend.workers) as progress:
                 episodes.on_add = progress.episode_ended  # the bar counts episodes as they end
                 resumed_with = len(episodes.rows)
                 train(session, state, done, progress, on_chunk,
@@ -366,6 +367,7 @@ def _print_summary(summary: dict[str, Any], run: Any) -> None:
         f"{summary['pool_utilisation']:.0%})\n"
         f"  mean iterations over the last 100 episodes: {summary['final_mean_iterations']:.1f}; "
         f"failures: {failures}\n"
-        f"  run directory: {run.path} (config.json, episodes.csv, metrics.jsonl/.csv, summary.json, "
+        + "".join(f"  {line}\n" for line in summary.get("workers_lost", []))
+        + f"  run directory: {run.path} (config.json, episodes.csv, metrics.jsonl/.csv, summary.json, "
         f"checkpoints/)\n"
         f"  evaluate with: jaxsimrl eval-foam {run.path}\n")

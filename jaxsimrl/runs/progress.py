@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 import sys
+from collections.abc import Callable
 from typing import Any, TextIO
 
 from rich.console import Console
@@ -82,8 +83,10 @@ class FoamProgress:
     cuts the statistics, never the count."""
 
     def __init__(self, target: int, episodes: Any, pool: int, metrics: Any, stream: TextIO | None = None,
-                 live: bool | None = None) -> None:
+                 live: bool | None = None, workers: Callable[[], int] | None = None) -> None:
         self.target, self.episodes, self.pool, self.metrics = target, episodes, pool, metrics
+        # the pool's live worker count (fewer than ``pool`` once a Ray node is lost for good)
+        self.workers = workers or (lambda: pool)
         self.stream = stream if stream is not None else sys.stdout
         self.console = Console(file=self.stream, highlight=False)
         self.live = self.console.is_terminal if live is None else live
@@ -127,6 +130,8 @@ class FoamProgress:
         moving = self.episodes.moving_iterations()
         moving_text = f"{moving:.0f}" if math.isfinite(moving) else "-"
         parts = [f"iterations (last 100) {moving_text}", f"failures: {failed or 'none'}"]
+        if (workers := self.workers()) < self.pool:  # first: a narrow terminal cuts the end
+            parts.insert(0, f"workers {workers}/{self.pool}")
         if wall > 0:
             parts += [f"{count / wall * 3600:.0f} episodes/h",
                       f"pool {self.episodes.busy_s() / (self.pool * wall):.0%} busy"]
