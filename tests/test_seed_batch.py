@@ -48,13 +48,17 @@ def assert_rows_close(batch_rows: list[dict], single_rows: list[dict]) -> None:
                 assert got[name] == pytest.approx(value, rel=METRIC_RTOL, abs=METRIC_ATOL), name
 
 
+def train_batch(out: Path, seeds: tuple[int, ...] = SEEDS) -> Path:
+    """A finished tiny --seeds batch of ``seeds`` in ``out`` (shared with other test modules)."""
+    assert main(["train-lorenz", *TINY_FLAGS, "--seeds", ",".join(map(str, seeds)), "--out", str(out)]) == 0
+    return out
+
+
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory):
     """A finished --seeds 0,3 batch, and --seed 3 alone, on the same tiny config."""
     root = tmp_path_factory.mktemp("batch")
-    batch, single = root / "batch", root / "single"
-    seeds = ",".join(map(str, SEEDS))
-    assert main(["train-lorenz", *TINY_FLAGS, "--seeds", seeds, "--out", str(batch)]) == 0
+    batch, single = train_batch(root / "batch"), root / "single"
     assert main(["train-lorenz", *TINY_FLAGS, "--seed", str(SEEDS[1]), "--out", str(single)]) == 0
     return batch, single
 

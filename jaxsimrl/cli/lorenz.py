@@ -419,6 +419,8 @@ def run_eval(args: argparse.Namespace) -> int:
 
 def _print_eval(report: dict[str, Any], run_dir: Path, suffix: str) -> None:
     base = report["uncontrolled"]
+    written = [f"eval{suffix}.json", f"eval_trajectory{suffix}.png"]
+    written += [report["profile_plot"]] if "profile_plot" in report else []
     mode = "sampled" if report["stochastic"] else "mean (deterministic)"
     who = f", agent {report['agent']} (seed {report['agent_seed']})" if "agent" in report else ""
     sys.stdout.write(
@@ -429,7 +431,20 @@ def _print_eval(report: dict[str, Any], run_dir: Path, suffix: str) -> None:
         f"  uncontrolled: mean return {base['mean_return']:10.1f} (std {base['std_return']:.1f}, "
         f"min {base['min_return']:.1f}, max {base['max_return']:.1f})   "
         f"|velocity| > {report['v_threshold']:g}: {base['fraction_above_threshold']:.1%} of steps\n"
-        f"  wrote {run_dir / f'eval{suffix}.json'} and {run_dir / f'eval_trajectory{suffix}.png'}\n")
+        f"{_aggregate_text(report)}"
+        f"  wrote {' and '.join(str(run_dir / name) for name in written)}\n")
+
+
+def _aggregate_text(report: dict[str, Any]) -> str:
+    """A batch's IQM, median and mean of the agents' mean returns with their intervals ('' otherwise)."""
+    if "aggregate" not in report:
+        return ""
+    stats = report["aggregate"]
+    boot = stats["bootstrap"]
+    parts = [f"{name} {stats[key]['value']:.1f} [{stats[key]['ci_low']:.1f}, {stats[key]['ci_high']:.1f}]"
+             for key, name in (("iqm", "IQM"), ("median", "median"), ("mean", "mean"))]
+    return (f"  across {stats['count']} agents (mean returns, {boot['confidence']:.0%} stratified-bootstrap "
+            f"CI, {boot['reps']} reps, seed {boot['seed']}): {'; '.join(parts)}\n")
 
 
 def _controlled_text(report: dict[str, Any]) -> str:

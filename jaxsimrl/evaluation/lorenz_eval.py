@@ -24,6 +24,7 @@ from jaxsimrl.runs.atomic import atomic_write_json
 
 EVAL_FILE = "eval.json"
 PLOT_FILE = "eval_trajectory.png"
+PROFILE_FILE = "eval_profile.png"  # a batch's performance profile across agents
 
 
 class Rollout(NamedTuple):
@@ -139,7 +140,8 @@ def evaluate_run(run_path: Path, episodes: int = 32, stochastic: bool = False, s
                  agent: int | None = None) -> dict[str, Any]:
     """eval-lorenz: write RUN_DIR/eval.json and RUN_DIR/eval_trajectory.png; return the report. For a
     ``--seeds`` run, every agent is evaluated (from the same initial states) and the report holds each
-    agent's statistics and those across agents; with ``agent=K`` only agent K, into
+    agent's statistics and those across agents (see :func:`aggregate_agents`), and their performance
+    profile is drawn to RUN_DIR/eval_profile.png; with ``agent=K`` only agent K, into
     eval-agent-K.json and eval_trajectory-agent-K.png."""
     from jaxsimrl.evaluation.plots import plot_trajectories
     from jaxsimrl.introspect.loading import load_agents, load_policy
@@ -161,6 +163,11 @@ def evaluate_run(run_path: Path, episodes: int = 32, stochastic: bool = False, s
     plot_trajectories(_named(run_path, PLOT_FILE, suffix), shown.xyz[0], base.xyz[0], shown.speed[0],
                       base.speed[0], dt=float(params.dt), v_threshold=float(params.v_threshold),
                       fixed_point=P_MINUS)
+    if "aggregate" in report:
+        from jaxsimrl.evaluation.aggregate import plot_performance_profile
+
+        plot_performance_profile(Path(run_path) / PROFILE_FILE, [a["mean_return"] for a in report["agents"]])
+        report["profile_plot"] = PROFILE_FILE
     atomic_write_json(_named(run_path, EVAL_FILE, suffix), report)
     return report
 
@@ -173,15 +180,20 @@ _SHARED = ("episodes", "episode_steps", "seed", "v_threshold", "stochastic", "ch
 def aggregate_agents(reports: list[dict[str, Any]]) -> dict[str, Any]:
     """The report of a batch of agents: the shared entries, ``mean_return`` and
     ``fraction_above_threshold`` averaged over the agents, ``mean_return_agents`` (count, mean, median,
-    min, max across agents), ``agents`` (each agent's own entries) and ``plotted_agent`` (the median
-    agent by mean return, whose trajectory is plotted)."""
+    min, max across agents), ``aggregate`` (IQM, median and mean of the agents' mean returns with 95 %
+    stratified-bootstrap intervals, :func:`jaxsimrl.evaluation.aggregate.interval_estimates`),
+    ``agents`` (each agent's own entries) and ``plotted_agent`` (the median agent by mean return, whose
+    trajectory is plotted)."""
+    from jaxsimrl.evaluation.aggregate import interval_estimates
     from jaxsimrl.runs.run_dir import spread
 
     means = [report["mean_return"] for report in reports]
     return {**{key: reports[0][key] for key in _SHARED}, "num_agents": len(reports),
             "mean_return": float(np.mean(means)),
             "fraction_above_threshold": float(np.mean([r["fraction_above_threshold"] for r in reports])),
-            "mean_return_agents": spread(means), "plotted_agent": int(np.argsort(means)[len(means) // 2]),
+            "mean_return_agents": spread(means),
+            "aggregate": {"of": "mean_return", **interval_estimates(means)},
+            "plotted_agent": int(np.argsort(means)[len(means) // 2]),
             "agents": [{key: value for key, value in r.items() if key not in _SHARED} for r in reports]}
 
 
