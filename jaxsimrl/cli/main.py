@@ -13,8 +13,8 @@ import sys
 from jaxsimrl.cli.errors import OneLineArgumentParser, UsageError
 
 # Modules that contribute subcommands.
-SUBCOMMAND_MODULES = ("jaxsimrl.cli.lorenz", "jaxsimrl.cli.foam", "jaxsimrl.cli.train_foam",
-                      "jaxsimrl.cli.eval_foam", "jaxsimrl.cli.plot")
+SUBCOMMAND_MODULES = ("jaxsimrl.cli.lorenz", "jaxsimrl.cli.eval_lorenz", "jaxsimrl.cli.foam",
+                      "jaxsimrl.cli.train_foam", "jaxsimrl.cli.eval_foam", "jaxsimrl.cli.plot")
 
 
 def build_parser() -> OneLineArgumentParser:
