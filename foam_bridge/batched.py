@@ -2,7 +2,7 @@
 
     env = BatchedFoamEnv(cfg, num_envs=4, pool=2, seed=0)        # backend="ray" for Ray actors
     obs, infos = env.reset()                                      # obs [N, obs_dim] float32
-    obs, reward, terminated, truncated, infos = env.step(actions)  # actions [N, 2] = (alpha_u, alpha_p)
+    obs, reward, terminated, truncated, infos = env.step(actions)  # actions [N, 2 or 3]: the factors
 
 Auto-reset follows gymnasium's "same step" mode: when env ``i`` ends an episode, ``obs[i]`` is
 already the first observation of its next episode, ``infos["final_obs"][i]`` and
@@ -45,6 +45,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 
 from foam_bridge.backends import BAD_INPUT_ERRORS, WORKER_DIED, Reply, Request, make_backend, validate_pool
 from foam_bridge.config import (  # failure_reward: re-exported
+    ACTION_NAMES,
     FoamEnvConfig,
     cost_per_iteration,
     failure_reward,
@@ -72,6 +73,7 @@ class _Tally:
     obs: np.ndarray
     seed: int | None = None
     inlet_velocity: float = float("nan")
+    step_height: float = float("nan")
     iterations: int = 0
     episode_return: float = 0.0
     residuals: dict[str, float] = field(default_factory=dict)
@@ -169,7 +171,9 @@ class BatchedFoamEnv:
     def _start_tally(self, env_id: int, seed: int, obs: Any, info: dict[str, Any]) -> tuple[np.ndarray, dict]:
         obs = np.asarray(obs, np.float32)
         velocity = float(info.get("inlet_velocity", np.nan))
+        height = info.get("step_height")
         self._tallies[env_id] = _Tally(obs, seed=seed, inlet_velocity=velocity,
+                                       step_height=float("nan") if height is None else float(height),
                                        residuals=dict(info.get("residuals", {})),
                                        node=self.backend.node_of(env_id))
         return obs, info
@@ -187,12 +191,14 @@ class BatchedFoamEnv:
 
     # ----- step --------------------------------------------------------------------------------
     def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
-        """Step every env with its (alpha_u, alpha_p); auto-reset the ones whose episode ended."""
+        """Step every env with its (alpha_u, alpha_p[, alpha_t]); auto-reset the ones whose episode ended."""
         actions = np.asarray(actions, np.float64)
-        if actions.shape != (self.num_envs, 2):
-            raise ValueError(f"actions: expected shape ({self.num_envs}, 2), got {actions.shape}")
+        size = self.cfg.action_size
+        names = ", ".join(ACTION_NAMES[:size])
+        if actions.shape != (self.num_envs, size):
+            raise ValueError(f"actions: expected shape ({self.num_envs}, {size}), got {actions.shape}")
         if not np.isfinite(actions).all():  # an agent bug, not a solver failure: refuse, as FoamCaseEnv does
-            raise ValueError(f"actions: expected finite (alpha_u, alpha_p), got {actions.tolist()}")
+            raise ValueError(f"actions: expected finite ({names}), got {actions.tolist()}")
         restarted, unstarted = self._retry_resets()
         runnable = [i for i in range(self.num_envs) if i not in unstarted and i not in restarted]
         replies = self.backend.run([Request(i, "step", {"action": actions[i]}) for i in runnable])
@@ -239,7 +245,8 @@ class BatchedFoamEnv:
         record = {
             "outcome": "crashed", "cause": cause, "iterations": tally.iterations,
             "return": tally.episode_return, "actions": list(tally.actions), "seed": tally.seed,
-            "inlet_velocity": tally.inlet_velocity, "wall_time_s": time.monotonic() - tally.started,
+            "inlet_velocity": tally.inlet_velocity, "step_height": tally.step_height,
+            "wall_time_s": time.monotonic() - tally.started,
             "node": tally.node,
         }
         return {"iterations": tally.iterations, "residuals": dict(tally.residuals), "outcome": "crashed",

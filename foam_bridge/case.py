@@ -56,7 +56,7 @@ import os
 import shutil
 import subprocess
 import tempfile
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -65,7 +65,13 @@ import numpy as np
 from foamlib import FoamFile
 
 from foam_bridge import foamdict
-from foam_bridge.config import FOLLOW_ALPHA_U, STEP_HEIGHT_H, FoamEnvConfig, without_convergence_test
+from foam_bridge.config import (
+    FOLLOW_ALPHA_U,
+    K_OMEGA_ACTION,
+    STEP_HEIGHT_H,
+    FoamEnvConfig,
+    without_convergence_test,
+)
 from foam_bridge.errors import CaseError
 from foam_bridge.fields import time_directories
 from foam_bridge.logparse import LogParser
@@ -165,7 +171,7 @@ def build_base_case(cfg: FoamEnvConfig, dest: Path, openfoam: OpenFOAM) -> CaseI
     copy_case(source, dest)
     if cfg.case_dir is None:
         with FoamFile(dest / "system" / "meshParameters") as params:
-            params.update(mesh_parameters(cfg.mesh_scale, cfg.step_height))
+            params.update(mesh_parameters(cfg.mesh_scale, cfg.fixed_height))
     with _named_after(dest, source):
         info = inspect_case(dest, cfg, openfoam)  # before blockMesh: a broken dictionary is named first
         if not (dest / "constant" / "polyMesh" / "boundary").is_file():
@@ -176,14 +182,25 @@ def build_base_case(cfg: FoamEnvConfig, dest: Path, openfoam: OpenFOAM) -> CaseI
                         f"(patches: {', '.join(patch_names(dest))}); set FoamEnvConfig.inlet_patch")
     if cfg.case_dir is None:
         return info
-    factors = info.own_factors or cfg.action_low
+    factors = info.own_factors or (cfg.action_low[0], cfg.action_low[1])
     return dataclasses.replace(info, solved_fields=dry_run(dest, cfg, openfoam, source, factors, info))
+
+
+def mesh_builtin(cfg: FoamEnvConfig, dest: Path, openfoam: OpenFOAM, step_height: float) -> None:
+    """The built-in template in ``dest`` meshed for ``step_height`` (blockMesh only, 0.2-0.3 s): another
+    height of a step-height family. What build_base_case read from the template (CaseInfo) does not
+    depend on the height, so the env keeps the first one's instead of reading it again (~0.4 s)."""
+    copy_case(TEMPLATE_DIR, dest)
+    with FoamFile(dest / "system" / "meshParameters") as params:
+        params.update(mesh_parameters(cfg.mesh_scale, step_height))
+    run_application(openfoam, "blockMesh", dest)
 
 
 def dry_run(base: Path, cfg: FoamEnvConfig, openfoam: OpenFOAM, source: Path, factors: tuple[float, float],
             info: CaseInfo) -> tuple[str, ...]:
     """Run one SIMPLE iteration of the meshed case ``base`` as an episode runs it, with the (alpha_u,
-    alpha_p) ``factors`` (the case's own where it has them), in a temporary copy; returns the fields it
+    alpha_p) ``factors`` (the case's own where it has them; with the alpha_t action, the case's own
+    turbulence factors), in a temporary copy; returns the fields it
     solved. Everything else is the case's own: solvers, schemes, function objects, inlet.
 
     A case that cannot run with its own settings (an unknown solver name, a missing ``;`` that
@@ -198,7 +215,8 @@ def dry_run(base: Path, cfg: FoamEnvConfig, openfoam: OpenFOAM, source: Path, fa
         (copy / "constant" / "polyMesh").symlink_to((base / "constant" / "polyMesh").resolve())
         (copy / "system" / BRIDGE_DIR).mkdir()
         _write_control(copy, cfg, pause=False, functions=False, end=1)
-        _write_fixed_fv_solution(copy, base, cfg, relaxation_text(cfg, *factors, info.flat_relaxation))
+        text = relaxation_text(cfg, factors[0], factors[1], info.flat_relaxation)
+        _write_fixed_fv_solution(copy, base, cfg, text)
         returncode, output = _run_one_iteration(copy, cfg, openfoam, source)
         parser = LogParser("", "", cfg.divergence_threshold)
         parser.feed(output)
@@ -451,16 +469,17 @@ def write_episode_case(base: Path, dest: Path, cfg: FoamEnvConfig, inlet_velocit
 
 
 def make_uninterrupted(case: Path, cfg: FoamEnvConfig, alpha_u: float, alpha_p: float,
-                       flat: bool = False, functions: bool = True) -> None:
+                       flat: bool = False, functions: bool = True, alpha_t: float | None = None,
+                       turbulence: Sequence[str] | None = None) -> None:
     """Turn an episode case into a plain one: constant factors in a regular file, no pause.
 
-    The factors are written as the bridge would feed them (:func:`relaxation_text`). The reference
-    run for "chunked == uninterrupted" and for the overhead benchmark (``functions=False``: not even
-    the bridge's state function objects).
+    The factors are written as the bridge would feed them (:func:`relaxation_text`; ``alpha_t`` and
+    ``turbulence`` as there). The reference run for "chunked == uninterrupted" and for the overhead
+    benchmark (``functions=False``: not even the bridge's state function objects).
     """
     first = relaxation_fifo(case, 0)
     first.unlink()
-    first.write_bytes(relaxation_text(cfg, alpha_u, alpha_p, flat))
+    first.write_bytes(relaxation_text(cfg, alpha_u, alpha_p, flat, alpha_t, turbulence))
     _write_control(case, cfg, pause=False, functions=functions)
 
 
@@ -501,22 +520,39 @@ def _write_fixed_fv_solution(case: Path, base: Path, cfg: FoamEnvConfig, text: b
         f'{own}\n#include "{SIMPLE_INCLUDE}"\n#include "{FIXED_RELAXATION}"\n')
 
 
-def relaxation_text(cfg: FoamEnvConfig, alpha_u: float, alpha_p: float, flat: bool = False) -> bytes:
+def relaxation_text(cfg: FoamEnvConfig, alpha_u: float, alpha_p: float, flat: bool = False,
+                    alpha_t: float | None = None, turbulence: Sequence[str] | None = None) -> bytes:
     """The relaxationFactors entry the bridge feeds through the FIFO for one action.
 
     It is merged into the case's own relaxationFactors, so every factor it does not name stays the
     case's: alpha_u relaxes the velocity equation, alpha_p the pressure field, and the turbulence
-    fields get ``cfg.k_omega_relaxation`` (a float, alpha_u for FOLLOW_ALPHA_U, nothing for None).
-    ``flat``: the case uses the old flat layout (``relaxationFactors { p 0.3; U 0.7; }``).
+    fields get ``cfg.k_omega_relaxation`` (a float, alpha_u for FOLLOW_ALPHA_U, ``alpha_t`` for
+    K_OMEGA_ACTION, nothing for None, nor for K_OMEGA_ACTION without an ``alpha_t``: the case's own).
+    ``turbulence``: the fields that factor relaxes (default ``cfg.turbulence_fields``; see
+    :func:`turbulence_fields`). ``flat``: the case uses the old flat layout
+    (``relaxationFactors { p 0.3; U 0.7; }``).
     """
     fields = {cfg.pressure_field: float(alpha_p)}
     equations = {cfg.velocity_field: float(alpha_u)}
-    turbulence = cfg.k_omega_relaxation
-    if turbulence is not None:
-        factor = float(alpha_u) if turbulence == FOLLOW_ALPHA_U else float(turbulence)
-        equations.update({name: factor for name in cfg.turbulence_fields})
+    mode = cfg.k_omega_relaxation
+    factor = float(alpha_u) if mode == FOLLOW_ALPHA_U else alpha_t if mode == K_OMEGA_ACTION else mode
+    if factor is not None:
+        names = cfg.turbulence_fields if turbulence is None else turbulence
+        equations.update({name: float(factor) for name in names})
     factors = {**fields, **equations} if flat else {"fields": fields, "equations": equations}
     return FoamFile.dumps({"relaxationFactors": factors}, ensure_header=False) + b"\n"
+
+
+def turbulence_fields(cfg: FoamEnvConfig, info: CaseInfo) -> tuple[str, ...]:
+    """The fields alpha_t relaxes (relax_k_omega="action"): ``cfg.turbulence_fields`` for the built-in
+    case; for a user's case, every field its dry run solved besides the velocity and pressure (k and
+    omega, k and epsilon, nuTilda...), so that the third action reaches whatever model it runs."""
+    if cfg.builtin or not info.solved_fields:
+        return tuple(cfg.turbulence_fields)
+    from foam_bridge.user_case import solved_field_names  # user_case imports this module
+
+    skip = {cfg.velocity_field, cfg.pressure_field}
+    return tuple(name for name in solved_field_names(info.solved_fields) if name not in skip)
 
 
 def initial_state(info: CaseInfo, inlet_velocity: float | None) -> tuple[float, float]:

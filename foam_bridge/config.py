@@ -36,8 +36,14 @@ TEST_CONVERGENCE: Mapping[str, float] = MappingProxyType({"U": 5e-4, "k": 5e-4, 
 NEVER_CONVERGED = 1e-30
 
 SIMPLE_VARIANTS = ("SIMPLE", "SIMPLEC")
+#: The action's entries, in order (the third only with relax_k_omega="action").
+ACTION_NAMES = ("alpha_u", "alpha_p", "alpha_t")
 #: ``relax_k_omega`` value that relaxes the turbulence fields with alpha_u (the agent's momentum factor).
 FOLLOW_ALPHA_U = "alpha_u"
+#: ``relax_k_omega`` value that makes the turbulence fields' factor a third action, alpha_t.
+K_OMEGA_ACTION = "action"
+#: The built-in action box per factor (the paper's): [0.2, 0.95] for alpha_u, alpha_p (and alpha_t).
+BUILTIN_ACTION_BOUNDS = (0.2, 0.95)
 #: The built-in case's defaults, the paper's code's (and the tutorial's): SIMPLEC, k/omega relaxed at
 #: 0.8, inlet speed uniform in [35, 65] m/s, inlet turbulence from intensity 6.1e-4 and nu_t/nu 0.009.
 BUILTIN_SIMPLE_VARIANT = "SIMPLEC"
@@ -72,7 +78,11 @@ class FoamEnvConfig:
             different control problem; 0.35 is borderline. Ignored for a user's case.
         step_height: step height in metres of the built-in case. 0.0127 (h) is the paper's training
             geometry, 0.0254 (2h) its second test geometry: only the step is deepened (the downstream
-            floor moves down), the inlet channel and the domain length stay the same.
+            floor moves down), the inlet channel and the domain length stay the same. A ``(low, high)``
+            range: a family of geometries, the height drawn uniformly per episode from the seeded
+            episode RNG *after* the inlet velocity (so a fixed height draws exactly the velocities it
+            always drew); ``reset(options={"step_height": x})`` fixes it for one episode. Each height's
+            mesh is built by blockMesh when first met and a few are kept (foam_bridge.env).
         inlet_velocity: inlet speed in m/s: a ``(low, high)`` range sampled uniformly per episode from
             the seeded episode RNG, or a fixed float. ``reset(options={"inlet_velocity": v})``
             overrides it for one episode. ``None`` (default): the built-in case samples
@@ -92,12 +102,17 @@ class FoamEnvConfig:
     MDP:
         interval: SIMPLE iterations per env step (the paper: 100).
         max_iterations: iteration cap; reaching it ends the episode (outcome ``truncated``, terminated).
-        action_low, action_high: box of (alpha_u, alpha_p); actions are clipped into it. Default: the
-            built-in case's [0.2, 0.95]^2; for a user's case foam_bridge.user_case.case_defaults gives a
-            box its algorithm tolerates (train-foam applies it to ``--case``).
-        relax_k_omega: relaxation factor of the turbulence fields: a float (fixed), or FOLLOW_ALPHA_U
-            (``"alpha_u"``: the agent's momentum factor). ``None`` (default): 0.8 for the built-in case,
-            the case's own factors for a user's case. Every other field keeps the case's own factor.
+        action_low, action_high: box of the action (:attr:`action_size` entries: alpha_u, alpha_p and,
+            with ``relax_k_omega="action"``, alpha_t); actions are clipped into it. Default: the
+            built-in case's [0.2, 0.95]^2, which becomes [0.2, 0.95]^3 with the third action (any other
+            box must have action_size entries); for a user's case foam_bridge.user_case.case_defaults
+            gives a box its algorithm tolerates (train-foam applies it to ``--case``).
+        relax_k_omega: relaxation factor of the turbulence fields: a float (fixed), FOLLOW_ALPHA_U
+            (``"alpha_u"``: the agent's momentum factor) or K_OMEGA_ACTION (``"action"``: a third
+            action alpha_t relaxes them; on a user's case "them" are the fields its dry run solved
+            besides the velocity and pressure, e.g. k and epsilon). ``None`` (default): 0.8 for the
+            built-in case, the case's own factors for a user's case. Every other field keeps the
+            case's own factor.
         convergence: field -> threshold on the solver's initial residual (vector fields: the largest
             component), as simpleFoam's own ``SIMPLE.residualControl``. Default: the paper's training
             criterion (TRAIN_CONVERGENCE); TEST_CONVERGENCE is its test criterion. A user's case's own
@@ -117,7 +132,16 @@ class FoamEnvConfig:
             the first one that passes ends the episode (converged at that boundary). Every check is
             in the episode record's "confirmations".
         residual_features: extra observation entries: log10 of the latest initial residual of each
-            ``convergence`` field at each of the last N step boundaries (0 = the paper's 1-D state).
+            ``convergence`` field at each of the last N step boundaries (0 = the paper's 1-D state;
+            before the first boundaries: 0). Their trends are the differences of these levels, which
+            the policy's first (linear) layer forms exactly, so they are not observed separately.
+        observe_progress: one more observation entry, K / max_iterations (0 at reset, 1 at the cap).
+        observe_action: action_size more entries, the factors in force (the last action after
+            clipping; at reset, before any action: the box centre (action_low + action_high) / 2).
+        scale_free_state: the state is divided by the episode's own inlet mean |U|^2 (at reset)
+            instead of ``state_scale``: 1 + mean_cells |U|^2 / mean_inlet |U|^2, the same at 10 and
+            50 m/s for similar flows (a user's case whose inlet has no value: ``state_scale``).
+            Observation layout: state, residual features, progress, action.
         state_scale: the observed state is (mean_inlet |U|^2 + mean_cells |U|^2) / state_scale
             (default U_REF**2 = 44.2**2, so the state is O(1)).
         reward: the cost whose increase is the negative reward of a step, one of REWARDS:
@@ -152,7 +176,7 @@ class FoamEnvConfig:
 
     case_dir: Path | str | None = None
     mesh_scale: float = 1.0
-    step_height: float = STEP_HEIGHT_H
+    step_height: float | tuple[float, float] = STEP_HEIGHT_H
     inlet_velocity: tuple[float, float] | float | None = None
     inlet_patch: str = "inlet"
     velocity_field: str = "U"
@@ -177,11 +201,22 @@ class FoamEnvConfig:
     keep_cases: bool = False
     openfoam_path: str | None = None
     inlet_turbulence: tuple[float, float] | None = None
+    observe_progress: bool = False
+    observe_action: bool = False
+    scale_free_state: bool = False
+
+    def __post_init__(self) -> None:
+        # the default box follows the action's size: [0.2, 0.95]^3 with alpha_t (see action_low)
+        size = self.action_size
+        for name, bound in zip(("action_low", "action_high"), BUILTIN_ACTION_BOUNDS, strict=True):
+            value = getattr(self, name)
+            if size == 3 and isinstance(value, tuple | list) and tuple(value) == (bound, bound):
+                object.__setattr__(self, name, (bound,) * 3)
 
     def validate(self) -> FoamEnvConfig:
         """Check every field; raise a one-line ``ValueError`` naming the first bad one. Returns self."""
         _check(self.mesh_scale > 0 and math.isfinite(self.mesh_scale), "mesh_scale", self.mesh_scale)
-        _check(self.step_height > 0 and math.isfinite(self.step_height), "step_height", self.step_height)
+        _check_height(self.step_height)
         if self.velocity_range is not None:
             low, high = self.velocity_range
             _check(0 < low <= high and math.isfinite(high), "inlet_velocity", self.inlet_velocity)
@@ -197,15 +232,18 @@ class FoamEnvConfig:
         _check(_is_int(self.interval) and self.interval >= 1, "interval", self.interval, "an integer >= 1")
         _check(_is_int(self.max_iterations) and self.max_iterations >= self.interval, "max_iterations",
                self.max_iterations, "an integer >= interval")
-        _check(len(self.action_low) == 2 and len(self.action_high) == 2, "action_low/action_high",
-               (self.action_low, self.action_high), "two values each")
+        size = self.action_size
+        _check(len(self.action_low) == size and len(self.action_high) == size, "action_low/action_high",
+               (self.action_low, self.action_high),
+               f"{size} values each ({', '.join(ACTION_NAMES[:size])})")
         for lo, hi in zip(self.action_low, self.action_high, strict=True):
             _check(0 < lo <= hi <= 1, "action_low/action_high", (self.action_low, self.action_high),
                    "0 < low <= high <= 1")
-        if self.relax_k_omega is not None and self.relax_k_omega != FOLLOW_ALPHA_U:
+        if self.relax_k_omega not in (None, FOLLOW_ALPHA_U, K_OMEGA_ACTION):
             factor = self.relax_k_omega
-            _check(isinstance(factor, int | float) and 0 < factor <= 1, "relax_k_omega", factor,
-                   f"None, {FOLLOW_ALPHA_U!r} or a factor in (0, 1]")
+            _check(isinstance(factor, int | float) and not isinstance(factor, str) and 0 < factor <= 1,
+                   "relax_k_omega", factor,
+                   f"None, {FOLLOW_ALPHA_U!r}, {K_OMEGA_ACTION!r} or a factor in (0, 1]")
         _check(len(self.convergence) > 0 and all(v > 0 for v in self.convergence.values()), "convergence",
                dict(self.convergence), "a non-empty {field: threshold > 0}")
         if self.confirm_alpha_u is not None:
@@ -215,6 +253,8 @@ class FoamEnvConfig:
         _check(_is_int(self.residual_features) and self.residual_features >= 0, "residual_features",
                self.residual_features, "an integer >= 0")
         _check(self.reward in REWARDS, "reward", self.reward, f"one of {REWARDS}")
+        for name in ("observe_progress", "observe_action", "scale_free_state"):
+            _check(isinstance(getattr(self, name), bool), name, getattr(self, name), "true or false")
         _check(self.state_scale > 0, "state_scale", self.state_scale)
         _check(self.step_timeout_s > 0, "step_timeout_s", self.step_timeout_s)
         _check(self.divergence_threshold > 0, "divergence_threshold", self.divergence_threshold)
@@ -241,6 +281,24 @@ class FoamEnvConfig:
         if isinstance(chosen, str) or len(chosen) != 2:
             raise ValueError(f"FoamEnvConfig.inlet_velocity: expected a float or (low, high), got {chosen!r}")
         return float(chosen[0]), float(chosen[1])
+
+    @property
+    def height_range(self) -> tuple[float, float] | None:
+        """(low, high) of the per-episode step height; None for a fixed height."""
+        if isinstance(self.step_height, tuple | list):
+            return float(self.step_height[0]), float(self.step_height[1])
+        return None
+
+    @property
+    def fixed_height(self) -> float:
+        """The step height of an episode without a drawn one: the fixed height, or the range's low."""
+        chosen = self.height_range
+        return float(self.step_height) if chosen is None else chosen[0]  # type: ignore[arg-type]
+
+    @property
+    def action_size(self) -> int:
+        """Entries of an action: 2 (alpha_u, alpha_p), 3 with relax_k_omega="action" (alpha_t too)."""
+        return 3 if self.relax_k_omega == K_OMEGA_ACTION else 2
 
     @property
     def variant(self) -> str | None:
@@ -273,8 +331,9 @@ class FoamEnvConfig:
 
     @property
     def observation_size(self) -> int:
-        """Length of the observation vector: the paper's state plus the residual features."""
-        return 1 + self.residual_features * len(self.convergence)
+        """Length of the observation vector: the state, the residual features, the progress, the action."""
+        return (1 + self.residual_features * len(self.convergence) + int(self.observe_progress)
+                + self.action_size * int(self.observe_action))
 
 
 def without_convergence_test(cfg: FoamEnvConfig) -> FoamEnvConfig:
@@ -332,6 +391,20 @@ def _check_no_whitespace(path: Path, what: str) -> None:
 def _absolute(path: Path | str | os.PathLike[str] | None) -> Path | None:
     """``path`` made absolute (symlinks resolved), ``~`` expanded; None stays None."""
     return None if path is None else Path(path).expanduser().resolve()
+
+
+def _check_height(height: object) -> None:
+    """A step height > 0, or a range (low, high) with 0 < low <= high."""
+    if isinstance(height, tuple | list):
+        ok = len(height) == 2 and all(_is_number(h) and h > 0 and math.isfinite(h) for h in height) \
+            and height[0] <= height[1]
+        _check(ok, "step_height", height, "a height > 0 or a range (low, high) with 0 < low <= high")
+        return
+    _check(_is_number(height) and height > 0 and math.isfinite(height), "step_height", height)  # type: ignore[operator]
+
+
+def _is_number(value: object) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
 
 
 def _is_int(value: object) -> bool:

@@ -9,7 +9,8 @@ solution (experiments/foam/README.md).
 
 The check normalises at one fixed relaxation instead: one SIMPLE iteration from the run's own fields
 (a scratch copy of the case at iteration K, started from its latest time) with alpha_u =
-``confirm_alpha_u``, the step's alpha_p and the case's turbulence factor, whose initial residuals are
+``confirm_alpha_u``, the step's alpha_p and the step's turbulence factor (the case's, or the step's
+alpha_t when it is an action), whose initial residuals are
 read from its log. The initial U residual of that iteration is computed from the fields of K before
 anything is solved, so the check measures the run's state, not a step of its own. It passes when the
 fields whose residual alpha_u normalises (:func:`checked_fields`) meet the criterion. Measured on the
@@ -80,13 +81,15 @@ def checked_fields(cfg: FoamEnvConfig) -> tuple[str, ...]:
 
 
 def confirm(episode: Path, base: Path, cfg: FoamEnvConfig, openfoam: OpenFOAM, iteration: int,
-            alpha_p: float, solver_residuals: dict[str, float], flat: bool = False) -> Confirmation:
+            alpha_p: float, solver_residuals: dict[str, float], flat: bool = False,
+            alpha_t: float | None = None, turbulence: Sequence[str] | None = None) -> Confirmation:
     """Check the fields the episode case wrote at ``iteration`` at alpha_u = ``cfg.confirm_alpha_u``
-    (``flat``: the case's relaxationFactors use the old flat layout)."""
+    (``flat``: the case's relaxationFactors use the old flat layout; ``alpha_t``: the step's turbulence
+    factor when it is an action, relaxing the ``turbulence`` fields, see case.relaxation_text)."""
     assert cfg.confirm_alpha_u is not None
     started = time.monotonic()
     scratch = episode.parent / CHECK_DIR
-    text = foam_case.relaxation_text(cfg, cfg.confirm_alpha_u, alpha_p, flat)
+    text = foam_case.relaxation_text(cfg, cfg.confirm_alpha_u, alpha_p, flat, alpha_t, turbulence)
     parser = LogParser(foam_case.CELLS_FUNCTION, foam_case.INLET_FUNCTION, cfg.divergence_threshold)
     error = ""
     try:

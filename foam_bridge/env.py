@@ -2,13 +2,15 @@
 
 MDP (Pawar & Maulik, "Solver convergence acceleration"):
 
-- action: (alpha_u, alpha_p), clipped into ``[action_low, action_high]`` (a bound's float32 value, as a
-  float32 box or policy gives it, is that bound exactly: foam_bridge.spaces.clip_to_box); alpha_u
-  relaxes the velocity equation (and k/omega unless ``relax_k_omega`` fixes them), alpha_p the
-  pressure field.
+- action: (alpha_u, alpha_p), or (alpha_u, alpha_p, alpha_t) with ``relax_k_omega="action"``, clipped
+  into ``[action_low, action_high]`` (a bound's float32 value, as a float32 box or policy gives it, is
+  that bound exactly: foam_bridge.spaces.clip_to_box); alpha_u relaxes the velocity equation (and
+  k/omega when they follow it), alpha_p the pressure field, alpha_t the turbulence fields.
 - observation: ``(mean_inlet |U|^2 + mean_cells |U|^2) / state_scale`` (arithmetic means over the inlet
-  faces and over all cells, as the paper's state; ``state_scale`` = 44.2**2 by default), then
-  optionally the log10 initial residuals of the last ``residual_features`` step boundaries.
+  faces and over all cells, as the paper's state; ``state_scale`` = 44.2**2 by default, or the
+  episode's inlet mean |U|^2 with ``scale_free_state``), then optionally the log10 initial residuals of
+  the last ``residual_features`` step boundaries, K / max_iterations (``observe_progress``) and the
+  factors in force (``observe_action``).
 - reward: -(K_t - K_{t-1}), K = SIMPLE iterations actually run; the return is minus the total. With
   ``cfg.reward`` "linear-iterations" or "solver-time", K is that cost instead (the linear solvers'
   inner iterations, the solver's CPU seconds, as the log counts them up to iteration K).
@@ -51,7 +53,7 @@ import os
 import shutil
 import signal
 import time
-from collections import deque
+from collections import OrderedDict, deque
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
@@ -60,7 +62,14 @@ from typing import Any, BinaryIO
 import numpy as np
 
 from foam_bridge import case as foam_case
-from foam_bridge.config import OBSERVATION_BOUND, FoamEnvConfig, cost_per_iteration, failure_reward, work_root
+from foam_bridge.config import (
+    ACTION_NAMES,
+    OBSERVATION_BOUND,
+    FoamEnvConfig,
+    cost_per_iteration,
+    failure_reward,
+    work_root,
+)
 from foam_bridge.confirm import confirm, meets
 from foam_bridge.logparse import LogParser, field_residual
 from foam_bridge.openfoam import find_openfoam
@@ -73,6 +82,11 @@ OUTCOMES = ("running", "converged", "truncated", "crashed", "diverged", "hung")
 FAILURES = ("crashed", "diverged", "hung")
 #: Lock file held (fcntl.flock) by the FoamCaseEnv that owns an env directory.
 LOCK_FILE = ".foam_bridge.lock"
+#: Meshes of a step-height family one env keeps. A new height costs one blockMesh (foam_case.mesh_builtin):
+#: a reset took 0.40-0.44 s instead of 0.08-0.09 s at mesh 0.5-1.0 (measured on a busy 2-core machine),
+#: against 3 s (mesh 0.5) to 30 s (full mesh) for an episode; continuous draws never repeat a height, so
+#: the cache only spares repeats, e.g. an evaluation's fixed heights.
+BASE_CACHE = 4
 
 __all__ = ["FAILURES", "OUTCOMES", "FoamCaseEnv", "FoamEnv", "FoamEnvState", "action_spec", "failure_reward",
            "observation_spec", "seed_from_key"]
@@ -94,8 +108,9 @@ class FoamCaseEnv:
     process group), samples the inlet velocity from the episode RNG (re-seeded when ``seed`` is given;
     seeded with ``env_id`` before the first seed, so runs are reproducible; ``options={"inlet_velocity":
     v}`` fixes it; a user's case without ``inlet_velocity`` keeps its own inlet, and "inlet_velocity"
-    reports its speed, NaN if it has no value), writes the case. The observation is the initial state
-    (iteration 0) read from 0/U. The solver starts on the first step.
+    reports its speed, NaN if it has no value), then the step height when ``step_height`` is a range
+    (``options={"step_height": x}`` fixes it; built-in case only), and writes the case. The
+    observation is the initial state (iteration 0) read from 0/U. The solver starts on the first step.
 
     ``step(action) -> (obs, reward, terminated, truncated, info)``; ``info`` has "iterations" (K),
     "residuals" ({field: latest initial residual}), "outcome" (one of OUTCOMES), "cause" (failure text
@@ -123,6 +138,10 @@ class FoamCaseEnv:
         except BaseException:
             self._release_directories()
             raise
+        self._height = cfg.fixed_height if cfg.builtin else None  # the step height of self.base
+        self._bases: OrderedDict[float | None, tuple[Path, foam_case.CaseInfo]] = OrderedDict(
+            {self._height: (self.base, self.case_info)})
+        self._turbulence = foam_case.turbulence_fields(cfg, self.case_info)  # what alpha_t relaxes
         self._rng = np.random.default_rng(env_id)
         self._solver: FoamSolver | None = None
         self._episode: dict[str, Any] = {}
@@ -136,7 +155,7 @@ class FoamCaseEnv:
 
     @property
     def action_space_spec(self) -> BoxSpec:
-        """Box of (alpha_u, alpha_p): ``[action_low, action_high]``."""
+        """Box of the action (alpha_u, alpha_p[, alpha_t]): ``[action_low, action_high]``."""
         return action_spec(self.cfg)
 
     def reset(
@@ -147,6 +166,7 @@ class FoamCaseEnv:
         if seed is not None:
             self._rng = np.random.default_rng(seed)
         velocity = self._episode_velocity(options or {})
+        self._use_height(self._episode_height(options or {}))  # drawn after the velocity (see config)
         foam_case.write_episode_case(self.base, self.case_dir, self.cfg, velocity, self.case_info)
         inlet, cells = foam_case.initial_state(self.case_info, velocity)
         if velocity is None:  # the user's case keeps its inlet: report its speed (NaN if it has none)
@@ -163,27 +183,35 @@ class FoamCaseEnv:
         self._features: deque[np.ndarray] = deque(
             [np.zeros(len(self.cfg.convergence))] * self.cfg.residual_features,
             maxlen=self.cfg.residual_features or None)
-        self._episode = {"env_id": self.env_id, "seed": seed, "inlet_velocity": velocity, "actions": [],
+        self._episode = {"env_id": self.env_id, "seed": seed, "inlet_velocity": velocity,
+                         "step_height": math.nan if self._height is None else self._height, "actions": [],
                          "return": 0.0, "steps": 0, "solver_idle_s": 0.0, "started": time.monotonic()}
         if self.cfg.confirm_alpha_u is not None:
             self._episode["confirmations"] = []
         self._done = False
-        self._obs = self._observation(inlet, cells)
+        # the scale-free state is relative to this episode's inlet (state_scale if it has none)
+        self._scale = inlet if self.cfg.scale_free_state and inlet > 0 else self.cfg.state_scale
+        self._state = (inlet + cells) / self._scale
+        self._factors = (np.asarray(self.cfg.action_low, np.float64) + np.asarray(self.cfg.action_high)) / 2
+        self._obs = self._observation()
         return self._obs.copy(), self._info("running", "", {})
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         """Run ``interval`` SIMPLE iterations with the given factors; see the class docstring."""
         if self._done:
             raise RuntimeError("step() on a finished episode: call reset() first")
-        alpha = clip_to_box(_two_factors(action), self.cfg.action_low, self.cfg.action_high)
-        self._episode["actions"].append([float(alpha[0]), float(alpha[1])])
-        text = foam_case.relaxation_text(self.cfg, alpha[0], alpha[1], self.case_info.flat_relaxation)
+        alpha = clip_to_box(_factors(action, self.cfg.action_size), self.cfg.action_low, self.cfg.action_high)
+        self._episode["actions"].append([float(a) for a in alpha])
+        self._factors = alpha
+        alpha_t = float(alpha[2]) if len(alpha) == 3 else None
+        text = foam_case.relaxation_text(self.cfg, alpha[0], alpha[1], self.case_info.flat_relaxation,
+                                         alpha_t, self._turbulence)
         event = self._advance(text)
         # stop before accounting: the whole output is then parsed, whatever had been read so far
         code = self._stop_solver() if event != PAUSED else None
         outcome, cause, iterations = self._classify(event, code)
         if self.cfg.confirm_alpha_u is not None:
-            outcome, cause, iterations = self._confirmed(outcome, cause, iterations, float(alpha[1]), text)
+            outcome, cause, iterations = self._confirmed(outcome, cause, iterations, alpha, text)
         previous, self._iterations = self._iterations, max(iterations, self._iterations)
         spent, self._cost = self._cost, self._episode_cost()
         if outcome in FAILURES:
@@ -252,6 +280,37 @@ class FoamCaseEnv:
             return None
         return float(self._rng.uniform(*self.cfg.velocity_range))
 
+    def _episode_height(self, options: dict[str, Any]) -> float | None:
+        """This episode's step height: the option, else drawn from the config's range, else the fixed
+        one (None: a user's case, whose mesh is its own)."""
+        if options.get("step_height") is not None:
+            height = float(options["step_height"])
+            if not self.cfg.builtin:
+                raise ValueError("options['step_height'] applies to the built-in backward-facing step only "
+                                 "(a case of your own keeps its own mesh)")
+            if not (math.isfinite(height) and height > 0):
+                raise ValueError(f"options['step_height']: expected a height > 0 in m, got {height!r}")
+            return height
+        if self.cfg.height_range is None:
+            return self.cfg.fixed_height if self.cfg.builtin else None
+        return float(self._rng.uniform(*self.cfg.height_range))
+
+    def _use_height(self, height: float | None) -> None:
+        """Make ``self.base`` (and its CaseInfo) the mesh of ``height``: built when first met, the last
+        BASE_CACHE kept (the oldest removed)."""
+        if height == self._height:
+            return
+        if height in self._bases:
+            self._bases.move_to_end(height)
+        else:
+            base = self.root / f"base-{height!r}"  # only the built-in case has heights
+            foam_case.mesh_builtin(self.cfg, base, self.openfoam, height)
+            self._bases[height] = (base, self.case_info)
+            while len(self._bases) > BASE_CACHE:
+                shutil.rmtree(self._bases.popitem(last=False)[1][0], ignore_errors=True)
+        self.base, self.case_info = self._bases[height]
+        self._height = height
+
     def _advance(self, text: bytes) -> str:
         """Feed the factors and run to the next pause; returns the solver event.
 
@@ -275,7 +334,7 @@ class FoamCaseEnv:
         self._solver.release(text)
         return self._solver.wait(max(deadline - time.monotonic(), 0.0), self._target)
 
-    def _confirmed(self, outcome: str, cause: str, iterations: int, alpha_p: float, text: bytes
+    def _confirmed(self, outcome: str, cause: str, iterations: int, alpha: np.ndarray, text: bytes
                    ) -> tuple[str, str, int]:
         """A step's (outcome, cause, K) under the check relaxation cannot move (cfg.confirm_alpha_u).
 
@@ -287,8 +346,9 @@ class FoamCaseEnv:
             at_boundary = outcome == "running" and self._unconfirmed and meets(self.cfg, self._residuals())
             if outcome != "converged" and not at_boundary:
                 return outcome, cause, iterations
-            check = confirm(self.case_dir, self.base, self.cfg, self.openfoam, iterations, alpha_p,
-                            self._residuals(), self.case_info.flat_relaxation)
+            check = confirm(self.case_dir, self.base, self.cfg, self.openfoam, iterations, float(alpha[1]),
+                            self._residuals(), self.case_info.flat_relaxation,
+                            float(alpha[2]) if len(alpha) == 3 else None, self._turbulence)
             self._episode["confirmations"].append(check.record())
             if check.passed:
                 self._stop_solver()
@@ -353,21 +413,25 @@ class FoamCaseEnv:
                     else 0.0 for name in self.cfg.convergence]
             self._features.append(np.asarray(logs))
         parser = self._parser
+        # a failed step keeps the last state read (the solver's last one may be a blow-up)
         if outcome not in FAILURES and parser.inlet_state is not None and parser.cells_state is not None:
-            self._obs = self._observation(parser.inlet_state, parser.cells_state)
-        elif self.cfg.residual_features:
-            self._obs = self._observation_from_state(float(self._obs[0]))
+            self._state = (parser.inlet_state + parser.cells_state) / self._scale
+        self._obs = self._observation()
 
-    def _observation(self, inlet: float, cells: float) -> np.ndarray:
-        return self._observation_from_state((inlet + cells) / self.cfg.state_scale)
-
-    def _observation_from_state(self, state: float) -> np.ndarray:
-        parts = [np.array([state]), *self._features] if self.cfg.residual_features else [np.array([state])]
+    def _observation(self) -> np.ndarray:
+        """state, residual features, progress, factors in force (FoamEnvConfig's observation layout)."""
+        cfg = self.cfg
+        parts = [np.array([self._state]), *(self._features if cfg.residual_features else [])]
+        if cfg.observe_progress:
+            parts.append(np.array([self._iterations / cfg.max_iterations]))
+        if cfg.observe_action:
+            parts.append(np.asarray(self._factors, np.float64))
         return bounded_observation(np.concatenate(parts))
 
     def _info(self, outcome: str, cause: str, residuals: dict[str, float]) -> dict[str, Any]:
         return {"iterations": self._iterations, "residuals": residuals, "outcome": outcome,
-                "cause": cause, "inlet_velocity": self._episode["inlet_velocity"]}
+                "cause": cause, "inlet_velocity": self._episode["inlet_velocity"],
+                "step_height": self._episode["step_height"]}
 
     def _episode_record(self, outcome: str, cause: str, residuals: dict[str, float]) -> dict[str, Any]:
         record = {key: value for key, value in self._episode.items() if key != "started"}
@@ -439,22 +503,24 @@ class FoamEnv:
             self._env = None
 
 
-def _two_factors(action: Any) -> np.ndarray:
-    """The action as two finite floats; a one-line ValueError otherwise."""
+def _factors(action: Any, size: int = 2) -> np.ndarray:
+    """The action as ``size`` finite floats; a one-line ValueError otherwise."""
+    names = f"({', '.join(ACTION_NAMES[:size])})"
     try:
-        alpha = np.asarray(action, dtype=float).reshape(2)
+        alpha = np.asarray(action, dtype=float).reshape(size)
     except (TypeError, ValueError):
-        raise ValueError(f"action: expected (alpha_u, alpha_p), got {action!r}") from None
+        raise ValueError(f"action: expected {names}, got {action!r}") from None
     if not np.all(np.isfinite(alpha)):
-        raise ValueError(f"action: expected finite (alpha_u, alpha_p), got {alpha.tolist()}")
+        raise ValueError(f"action: expected finite {names}, got {alpha.tolist()}")
     return alpha
 
 
 def observation_spec(cfg: FoamEnvConfig) -> BoxSpec:
-    """Box of the observation (float32): the scaled state in [0, B] then the log10 residual features in
-    [-B, B], B = OBSERVATION_BOUND."""
+    """Box of the observation (float32): the scaled state in [0, B], the log10 residual features in
+    [-B, B], then the progress and the factors in [0, B], B = OBSERVATION_BOUND."""
     n = cfg.observation_size
-    low = np.array([0.0] + [-OBSERVATION_BOUND] * (n - 1), dtype=np.float32)
+    features = cfg.residual_features * len(cfg.convergence)
+    low = np.array([0.0] + [-OBSERVATION_BOUND] * features + [0.0] * (n - 1 - features), dtype=np.float32)
     return BoxSpec(low=low, high=np.full(n, OBSERVATION_BOUND, dtype=np.float32), shape=(n,))
 
 
@@ -493,9 +559,9 @@ def _claim_directory(root: Path) -> BinaryIO:
 
 
 def action_spec(cfg: FoamEnvConfig) -> BoxSpec:
-    """Box of (alpha_u, alpha_p): ``[action_low, action_high]`` (float32)."""
+    """Box of (alpha_u, alpha_p[, alpha_t]): ``[action_low, action_high]`` (float32)."""
     return BoxSpec(low=np.asarray(cfg.action_low, dtype=np.float32),
-                   high=np.asarray(cfg.action_high, dtype=np.float32), shape=(2,))
+                   high=np.asarray(cfg.action_high, dtype=np.float32), shape=(cfg.action_size,))
 
 
 def seed_from_key(key: Any) -> int:

@@ -1,11 +1,13 @@
-"""Constant-factor grid study: iterations to convergence for every (alpha_u, alpha_p) on a grid.
+"""Constant-factor grid study: iterations to convergence for every (alpha_u, alpha_p) on a grid, or
+every (alpha_u, alpha_p, alpha_t) with the k/omega factor as a third axis.
 
 This is the tuned-constant baseline the paper never reported: every cell is one episode with the same
 action (alpha_u, alpha_p) at every step, run in parallel on the local worker pool (one env per pool
 slot; a slot takes the next cell when its episode ends). Results go to ``grid.csv`` (columns
 GRID_COLUMNS, written atomically) and ``grid.png`` (a heatmap in the style of the paper's Fig. 3:
 iterations annotated in every cell, crashed and non-converged cells hatched and labelled, the best
-cell framed).
+cell framed). A 3-D grid (``alpha_t`` given) has an ``alpha_t`` column after ``alpha_p`` (GRID_COLUMNS_3D)
+and one heatmap per alpha_t (:func:`plot_grid_slices`); read_grid_csv reads both kinds.
 
 Cells whose episode ends with a failure keep the iteration count at which it happened ("crash @ K");
 a cell that hit ``max_iterations`` is shown as ">K". The action box of the config is widened to the
@@ -31,9 +33,10 @@ import numpy as np
 
 from foam_bridge.atomic import atomic_write_bytes, atomic_write_text
 from foam_bridge.backends import BAD_INPUT_ERRORS, WORKER_DIED, Reply, Request, make_backend
-from foam_bridge.config import FoamEnvConfig, work_root
+from foam_bridge.config import K_OMEGA_ACTION, FoamEnvConfig, work_root
 
 GRID_COLUMNS = ("alpha_u", "alpha_p", "iterations", "outcome", "wall_time_s")
+GRID_COLUMNS_3D = ("alpha_u", "alpha_p", "alpha_t", "iterations", "outcome", "wall_time_s")
 TITLE_FONTSIZE = 10
 MIN_FIGURE_WIDTH_IN = 6.0
 LEGEND_HEIGHT_IN = 0.35
@@ -50,6 +53,13 @@ class GridCell:
     outcome: str
     wall_time_s: float
     cause: str = ""
+    alpha_t: float | None = None  # the k/omega factor of a 3-D grid; None: the config's fixed one
+
+    @property
+    def factors(self) -> tuple[float, ...]:
+        """(alpha_u, alpha_p) or (alpha_u, alpha_p, alpha_t): the cell's constant action."""
+        third = () if self.alpha_t is None else (self.alpha_t,)
+        return (self.alpha_u, self.alpha_p, *third)
 
 
 def check_factors(values: Sequence[float], name: str) -> tuple[float, ...]:
@@ -62,19 +72,28 @@ def check_factors(values: Sequence[float], name: str) -> tuple[float, ...]:
     return tuple(float(v) for v in values)
 
 
-def grid_config(cfg: FoamEnvConfig, alpha_u: Sequence[float], alpha_p: Sequence[float]) -> FoamEnvConfig:
-    """``cfg`` with its action box widened to cover the grid (constant factors must not be clipped)."""
-    low = (min(min(alpha_u), cfg.action_low[0]), min(min(alpha_p), cfg.action_low[1]))
-    high = (max(max(alpha_u), cfg.action_high[0]), max(max(alpha_p), cfg.action_high[1]))
+def grid_config(cfg: FoamEnvConfig, alpha_u: Sequence[float], alpha_p: Sequence[float],
+                alpha_t: Sequence[float] | None = None) -> FoamEnvConfig:
+    """``cfg`` with its action box widened to cover the grid (constant factors must not be clipped);
+    ``alpha_t`` makes the k/omega factor the action's third entry (relax_k_omega="action")."""
+    if alpha_t is not None and cfg.action_size == 2:
+        cfg = dataclasses.replace(cfg, relax_k_omega=K_OMEGA_ACTION,
+                                  action_low=(*cfg.action_low, min(alpha_t)),
+                                  action_high=(*cfg.action_high, max(alpha_t)))
+    axes = [alpha_u, alpha_p] + ([alpha_t] if cfg.action_size == 3 else [])
+    if len(axes) == 3 and alpha_t is None:
+        raise ValueError("alpha_t: a config with the k/omega factor as an action needs its grid values too")
+    low = tuple(min(min(a), b) for a, b in zip(axes, cfg.action_low, strict=True))
+    high = tuple(max(max(a), b) for a, b in zip(axes, cfg.action_high, strict=True))
     return dataclasses.replace(cfg, action_low=low, action_high=high).validate()
 
 
 class _Slot:
     """One pool slot running one cell's episode."""
 
-    def __init__(self, index: int, pair: tuple[float, float]) -> None:
+    def __init__(self, index: int, factors: tuple[float, ...]) -> None:
         self.index = index
-        self.action = np.asarray(pair, np.float64)
+        self.action = np.asarray(factors, np.float64)
         self.started = time.monotonic()
         self.iterations = 0
 
@@ -82,8 +101,9 @@ class _Slot:
             -> GridCell:
         """The finished cell; wall time from the episode record if there is one, else host-measured."""
         elapsed = time.monotonic() - self.started if wall_time_s is None else wall_time_s
-        alpha_u, alpha_p = (float(a) for a in self.action)
-        return GridCell(alpha_u, alpha_p, int(iterations), outcome, float(elapsed), cause)
+        alpha_u, alpha_p, *alpha_t = (float(a) for a in self.action)
+        return GridCell(alpha_u, alpha_p, int(iterations), outcome, float(elapsed), cause,
+                        alpha_t[0] if alpha_t else None)
 
 
 def run_grid(
@@ -93,13 +113,17 @@ def run_grid(
     pool: int = 1,
     work_dir: str | os.PathLike[str] | None = None,
     on_cell: Callable[[GridCell], None] | None = None,
+    alpha_t: Sequence[float] | None = None,
 ) -> list[GridCell]:
-    """Run every (alpha_u, alpha_p) pair with constant factors; cells come back in row-major grid order."""
+    """Run every (alpha_u, alpha_p) pair (every triple with ``alpha_t``, the k/omega factor) with
+    constant factors; cells come back in row-major grid order (alpha_t varying fastest)."""
     alpha_u, alpha_p = check_factors(alpha_u, "alpha_u"), check_factors(alpha_p, "alpha_p")
+    alpha_t = None if alpha_t is None else check_factors(alpha_t, "alpha_t")
     if isinstance(pool, bool) or not isinstance(pool, int) or pool < 1:
         raise ValueError(f"pool must be an integer >= 1, got {pool!r}")
-    cfg = grid_config(cfg, alpha_u, alpha_p).with_absolute_paths()  # workers need no shared cwd
-    pairs = [(u, p) for u in alpha_u for p in alpha_p]
+    cfg = grid_config(cfg, alpha_u, alpha_p, alpha_t).with_absolute_paths()  # workers need no shared cwd
+    thirds = [(a,) for a in alpha_t] if alpha_t else [()]
+    pairs = [(u, p, *t) for u in alpha_u for p in alpha_p for t in thirds]
     slots = min(pool, len(pairs))
     root, temporary = work_root(cfg, work_dir, prefix="foam_grid_")
     backend = make_backend("local", cfg, slots, slots, root)
@@ -161,18 +185,19 @@ def write_grid_csv(cells: Sequence[GridCell], path: str | os.PathLike[str]) -> N
     """``path`` <- one row per cell with GRID_COLUMNS, atomically."""
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
-    writer.writerow(GRID_COLUMNS)
+    three = any(cell.alpha_t is not None for cell in cells)
+    writer.writerow(GRID_COLUMNS_3D if three else GRID_COLUMNS)
     for cell in cells:
-        row = (cell.alpha_u, cell.alpha_p, cell.iterations, cell.outcome, f"{cell.wall_time_s:.3f}")
-        writer.writerow(row)
+        writer.writerow((*cell.factors, cell.iterations, cell.outcome, f"{cell.wall_time_s:.3f}"))
     atomic_write_text(path, buffer.getvalue())
 
 
 def read_grid_csv(path: str | os.PathLike[str]) -> list[GridCell]:
-    """Cells back from a grid.csv (for plotting again or comparing runs)."""
+    """Cells back from a grid.csv (for plotting again or comparing runs; 2-D or 3-D)."""
     with open(path, newline="") as handle:
         return [GridCell(float(r["alpha_u"]), float(r["alpha_p"]), int(r["iterations"]), r["outcome"],
-                         float(r["wall_time_s"])) for r in csv.DictReader(handle)]
+                         float(r["wall_time_s"]), alpha_t=float(r["alpha_t"]) if r.get("alpha_t") else None)
+                for r in csv.DictReader(handle)]
 
 
 def best_cell(cells: Sequence[GridCell]) -> GridCell | None:
@@ -202,6 +227,17 @@ def plot_grid(cells: Sequence[GridCell], path: str | os.PathLike[str], title: st
     buffer = io.BytesIO()
     heatmap_figure(cells, title).savefig(buffer, format="png", dpi=120)
     atomic_write_bytes(path, buffer.getvalue())
+
+
+def plot_grid_slices(cells: Sequence[GridCell], out: str | os.PathLike[str], title: str = "") -> list[str]:
+    """One heatmap per alpha_t of a 3-D grid, ``out/grid_alpha_t_<value>.png``; returns the file names."""
+    names = []
+    for alpha_t in sorted({c.alpha_t for c in cells if c.alpha_t is not None}):
+        name = f"grid_alpha_t_{alpha_t:g}.png"
+        plot_grid([c for c in cells if c.alpha_t == alpha_t], os.path.join(out, name),
+                  f"{title}\nalpha_t (k/omega) = {alpha_t:g}".strip())
+        names.append(name)
+    return names
 
 
 def heatmap_figure(cells: Sequence[GridCell], title: str = "") -> Any:

@@ -32,7 +32,8 @@ from foam_bridge.config import FoamEnvConfig
 from foam_bridge.spaces import BoxSpec
 
 CONFIG_FIELDS = tuple(f.name for f in dataclasses.fields(FoamEnvConfig))
-_TUPLE_FIELDS = ("inlet_velocity", "action_low", "action_high", "turbulence_fields", "inlet_turbulence")
+_TUPLE_FIELDS = ("inlet_velocity", "step_height", "action_low", "action_high", "turbulence_fields",
+                 "inlet_turbulence")
 
 
 def config_from_kwargs(kwargs: dict[str, Any]) -> FoamEnvConfig:

@@ -49,6 +49,9 @@ def register(subparsers: Any) -> None:
                         metavar="A", help="alpha_u of that small grid (default 0.8 0.9 0.95)")
     parser.add_argument("--grid-alpha-p", type=relaxation_factor, nargs="+", default=[0.8, 0.9, 0.95],
                         metavar="B", help="alpha_p of that small grid (default 0.8 0.9 0.95)")
+    parser.add_argument("--grid-alpha-t", type=relaxation_factor, nargs="+", default=None, metavar="T",
+                        help="alpha_t (k/omega) of that small grid, for a run with the k/omega action "
+                        "(default 0.8, the paper's)")
     parser.add_argument("--seed", type=seed_type(), default=0,
                         help="seeds the sampled and random actions (default 0): the same command gives the "
                         "same numbers")
@@ -85,6 +88,7 @@ def run_eval_foam(args: argparse.Namespace) -> int:
                     mesh_scale=args.mesh_scale, samples=args.samples, pool=args.pool, seed=args.seed,
                     baseline_grid=args.baseline_grid, grid_alpha_u=tuple(args.grid_alpha_u),
                     grid_alpha_p=tuple(args.grid_alpha_p), out=args.out,
+                    grid_alpha_t=None if args.grid_alpha_t is None else tuple(args.grid_alpha_t),
                     controllers=tuple(args.controllers), reference_iterations=args.reference_iterations,
                     reference_cache=args.reference_cache, confirm_alpha_u=args.confirm_alpha_u)
     _check_openfoam()

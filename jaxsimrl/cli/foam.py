@@ -3,6 +3,8 @@
     jaxsimrl grid-foam --alpha-u 0.5 0.7 0.9 --alpha-p 0.5 0.7 0.9 --mesh-scale 0.5 --pool 2 --out runs/grid
 
 Writes OUT/grid.csv (alpha_u, alpha_p, iterations, outcome, wall_time_s) and OUT/grid.png (heatmap).
+``--alpha-t A [A ...]`` adds the k/omega factor as a third axis: grid.csv gains an alpha_t column and
+there is one heatmap per alpha_t, OUT/grid_alpha_t_<A>.png.
 Bad input (factor outside (0, 1], empty list, bad mesh scale, pool < 1, OUT an existing file, OpenFOAM
 missing) is one line on stderr and exit code 2.
 """
@@ -37,6 +39,13 @@ def k_omega_factor(text: str) -> float | str:
     return FOLLOW_ALPHA_U if text == FOLLOW_ALPHA_U else relaxation_factor(text)
 
 
+def k_omega_setting(text: str) -> float | str:
+    """argparse type of train-foam's --relax-k-omega: a factor, ``alpha_u`` or ``action`` (a third action)."""
+    from foam_bridge.config import K_OMEGA_ACTION
+
+    return K_OMEGA_ACTION if text == K_OMEGA_ACTION else k_omega_factor(text)
+
+
 def check_factor(text: str) -> float:
     """argparse type: the relaxation of the convergence check (FoamEnvConfig.confirm_alpha_u), in (0, 1)."""
     value = relaxation_factor(text)
@@ -68,6 +77,9 @@ def register(subparsers: Any) -> None:
                         help="momentum relaxation factors, each in (0, 1]")
     parser.add_argument("--alpha-p", type=relaxation_factor, nargs="+", required=True, metavar="B",
                         help="pressure relaxation factors, each in (0, 1]")
+    parser.add_argument("--alpha-t", type=relaxation_factor, nargs="+", default=None, metavar="T",
+                        help="k/omega relaxation factors, each in (0, 1]: a 3-D grid (default: k/omega "
+                        "fixed, see --relax-k-omega)")
     parser.add_argument("--mesh-scale", type=positive_float, default=1.0,
                         help=f"mesh resolution factor (1.0 = 20,540 cells; default 1.0). Use >= "
                         f"{MESH_SCALE_USABLE_MIN:g}: coarser meshes diverge with the factors that are best "
@@ -96,6 +108,8 @@ def _config(args: argparse.Namespace) -> Any:
     from foam_bridge.config import TEST_CONVERGENCE, TRAIN_CONVERGENCE, FoamEnvConfig
 
     convergence = TRAIN_CONVERGENCE if args.criterion == "train" else TEST_CONVERGENCE
+    if args.alpha_t is not None and args.relax_k_omega is not None:
+        fail("--alpha-t and --relax-k-omega both set the k/omega factor: give one")
     cfg = FoamEnvConfig(mesh_scale=args.mesh_scale, step_height=args.step_height,
                         simple_variant=args.simple_variant,
                         inlet_velocity=args.inlet_velocity, max_iterations=args.max_iterations,
@@ -137,35 +151,41 @@ def run_grid_foam(args: argparse.Namespace) -> int:
     from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from foam_bridge.grid import best_cell, plot_grid, run_grid, write_grid_csv
+    from foam_bridge.grid import best_cell, plot_grid, plot_grid_slices, run_grid, write_grid_csv
 
     cfg = _config(args)
     out = _check_out_dir(args.out)
     _check_openfoam()
     _make_out_dir(out)
     console = Console(highlight=False)
-    total = len(args.alpha_u) * len(args.alpha_p)
+    total = len(args.alpha_u) * len(args.alpha_p) * len(args.alpha_t or [None])
     columns = (TextColumn("[bold]grid-foam"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
                TextColumn("{task.description}"))
     with Progress(*columns, console=console, transient=False) as progress:
         task = progress.add_task("", total=total)
 
         def on_cell(cell: Any) -> None:
-            progress.update(task, advance=1, description=f"last: ({cell.alpha_u:g}, {cell.alpha_p:g}) "
-                            f"{cell.outcome} @ {cell.iterations}")
+            factors = ", ".join(f"{f:g}" for f in cell.factors)
+            progress.update(task, advance=1, description=f"last: ({factors}) {cell.outcome} @ "
+                            f"{cell.iterations}")
 
         try:
-            cells = run_grid(cfg, args.alpha_u, args.alpha_p, pool=args.pool, on_cell=on_cell)
+            cells = run_grid(cfg, args.alpha_u, args.alpha_p, pool=args.pool, on_cell=on_cell,
+                             alpha_t=args.alpha_t)
         except ValueError as err:  # a case the env rejects: the same for every cell
             fail(str(err))
     write_grid_csv(cells, out / "grid.csv")
     factor = cfg.k_omega_relaxation
-    k_omega = "k/omega follow alpha_u" if isinstance(factor, str) else f"k/omega {factor:g}"
-    title = (f"SIMPLE iterations to convergence, constant factors\n{cfg.variant}, {k_omega}, "
+    k_omega = ("" if args.alpha_t else "k/omega follow alpha_u, " if isinstance(factor, str)
+               else f"k/omega {factor:g}, ")
+    title = (f"SIMPLE iterations to convergence, constant factors\n{cfg.variant}, {k_omega}"
              f"{args.criterion} criterion, mesh scale {args.mesh_scale:g}, V = {args.inlet_velocity:g} m/s")
-    plot_grid(cells, out / "grid.png", title)
+    figures = plot_grid_slices(cells, out, title) if args.alpha_t else ["grid.png"]
+    if not args.alpha_t:
+        plot_grid(cells, out / "grid.png", title)
     best = best_cell(cells)
-    summary = (f"best: alpha_u={best.alpha_u:g} alpha_p={best.alpha_p:g} -> {best.iterations} iterations"
-               if best else "no cell converged")
-    console.print(f"{summary}\nwrote {out / 'grid.csv'} and {out / 'grid.png'}")
+    names = ("alpha_u", "alpha_p", "alpha_t")
+    summary = ("best: " + " ".join(f"{n}={f:g}" for n, f in zip(names, best.factors, strict=False))
+               + f" -> {best.iterations} iterations" if best else "no cell converged")
+    console.print(f"{summary}\nwrote {out / 'grid.csv'} and {', '.join(str(out / f) for f in figures)}")
     return 0

@@ -27,6 +27,15 @@ PAPER_CASE = {"simple_variant": "SIMPLEC", "relax_k_omega": 0.8, "inlet_velocity
 #: costs ~11 linear-solver iterations and, on this project's 2-core machine, 6-25 ms of solver CPU time
 #: from mesh 0.5 to the full mesh; experiments/foam/eval-full/eval.csv).
 REWARD_SCALES = {"iterations": 1e-3, "linear-iterations": 1e-4, "solver-time": 0.1}
+#: FoamEnvConfig's observation switches, each a train-foam flag of its name (off by default: the paper's).
+OBSERVE_SWITCHES = (
+    ("observe_progress", "observe K / max_iterations, the iterations so far"),
+    ("observe_action", "observe the factors in force (the box centre before the first action)"),
+    ("scale_free_state", "divide the state by the episode's inlet mean |U|^2 instead of 44.2^2, so that "
+                         "a slow case looks like a fast one"),
+)
+#: FoamEnvConfig observation fields with a train-foam flag of the same name.
+OBSERVATION_FLAGS = ("residual_features", *(name for name, _ in OBSERVE_SWITCHES))
 #: PPOConfig fields with a train-foam flag (the others come from --config).
 KNOBS: tuple[tuple[str, Any, str], ...] = (
     ("steps_per_update", positive_int, f"env steps per PPO update over all envs (default {FOAM_BATCH}; "
@@ -204,7 +213,8 @@ def _starting_policy(run_dir: str, ppo: Any, foam: Any, checkpoint: int | None =
         raise UsageError(f"--init-from: {run_dir} has (network, hidden sizes, activation, observation size) "
                          f"{theirs}, this run {mine}")
     box = (list(foam.action_low), list(foam.action_high))
-    if not (np.allclose(policy.action_low, box[0]) and np.allclose(policy.action_high, box[1])):
+    same_size = len(policy.action_low) == len(box[0])  # 2 factors, or 3 with the k/omega action
+    if not (same_size and np.allclose(policy.action_low, box[0]) and np.allclose(policy.action_high, box[1])):
         raise UsageError(f"--init-from: {run_dir} acts in the box {policy.action_low.tolist()}-"
                          f"{policy.action_high.tolist()}, this run in {box[0]}-{box[1]}")
     return policy
@@ -222,9 +232,10 @@ def _foam_config(args: argparse.Namespace, extra: dict[str, Any]) -> Any:
         raise UsageError(f"--mesh-scale {args.mesh_scale:g} is below {MESH_SCALE_USABLE_MIN:g}: coarser "
                          f"meshes are a different control problem (many episodes diverge)")
     values = {**foam_config_to_json(FoamEnvConfig()), **extra}
-    flags = {"mesh_scale": args.mesh_scale, "step_height": args.step_height,
+    flags = {"mesh_scale": args.mesh_scale, "step_height": _step_height(args.step_height),
              "max_iterations": args.max_iterations, "case_dir": args.case, "reward": args.reward,
-             "confirm_alpha_u": args.confirm_alpha_u}
+             "confirm_alpha_u": args.confirm_alpha_u, "relax_k_omega": args.relax_k_omega,
+             **{name: getattr(args, name) for name in OBSERVATION_FLAGS}}
     values.update({name: value for name, value in flags.items() if value is not None})
     if values.get("case_dir") is None:  # the built-in case: its paper defaults, written out in config.json
         for name, value in PAPER_CASE.items():
@@ -234,6 +245,16 @@ def _foam_config(args: argparse.Namespace, extra: dict[str, Any]) -> Any:
     values["work_dir"] = None  # cases live in a temporary directory per process, never in the run dir
     cfg = foam_config_from_json(values)
     return cfg if cfg.builtin else _user_case(cfg, args, extra)
+
+
+def _step_height(values: list[float] | None) -> float | list[float] | None:
+    """--step-height: one height, or LOW HIGH (a range drawn per episode)."""
+    if values is None or len(values) == 1:
+        return None if values is None else values[0]
+    if len(values) != 2 or values[0] > values[1]:
+        raise UsageError(f"--step-height: expected one height or LOW HIGH with LOW <= HIGH, got "
+                         f"{' '.join(f'{v:g}' for v in values)}")
+    return list(values)
 
 
 def _user_case(cfg: Any, args: argparse.Namespace, extra: dict[str, Any]) -> Any:
@@ -261,7 +282,7 @@ def resume_plan(args: argparse.Namespace) -> FoamPlan:
     from jaxsimrl.runs.run_dir import RunDir
 
     fixed = ["config", "num_envs", "mesh_scale", "step_height", "max_iterations", "case", "reward", "seed",
-             "out", "init_from", "confirm_alpha_u"]
+             "out", "init_from", "confirm_alpha_u", "relax_k_omega", *OBSERVATION_FLAGS]
     changed = [name for name in fixed + [k for k, _, _ in KNOBS] if getattr(args, name) is not None]
     if changed:
         flag = "--" + changed[0].replace("_", "-")

@@ -35,7 +35,7 @@ from collections.abc import Callable
 from typing import Any
 
 from jaxsimrl.cli.errors import UsageError, positive_float, positive_int, seed_type
-from jaxsimrl.cli.foam_plan import KNOBS, FoamPlan, fresh_plan, resume_plan
+from jaxsimrl.cli.foam_plan import KNOBS, OBSERVE_SWITCHES, FoamPlan, fresh_plan, resume_plan
 
 INTERRUPTED = 130
 #: Key of the episodes in flight (BatchedFoamEnv.snapshot) in each checkpoint's record.
@@ -44,8 +44,8 @@ IN_FLIGHT = "in_flight"
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add train-foam to the ``jaxsimrl`` dispatcher."""
-    from foam_bridge.config import MESH_SCALE_USABLE_MIN, REWARDS
-    from jaxsimrl.cli.foam import add_confirm_argument
+    from foam_bridge.config import FOLLOW_ALPHA_U, K_OMEGA_ACTION, MESH_SCALE_USABLE_MIN, REWARDS
+    from jaxsimrl.cli.foam import add_confirm_argument, k_omega_setting
 
     p = subparsers.add_parser(
         "train-foam", help="train PPO to set simpleFoam's relaxation factors (real OpenFOAM cases)",
@@ -61,8 +61,19 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    "also end in that update are kept too; with --resume it may be raised")
     p.add_argument("--mesh-scale", type=positive_float, help=f"mesh resolution factor (1.0 = 20,540 cells, "
                    f"default); >= {MESH_SCALE_USABLE_MIN:g} (coarser meshes are a different control problem)")
-    p.add_argument("--step-height", type=positive_float, help="step height in m (default 0.0127 = h)")
+    p.add_argument("--step-height", type=positive_float, nargs="+", metavar="M",
+                   help="step height in m (default 0.0127 = h), or LOW HIGH: a family of geometries, the "
+                   "height drawn per episode (e.g. 0.0127 0.0254 = h to 2h); built-in case only")
+    p.add_argument("--relax-k-omega", type=k_omega_setting, metavar="F",
+                   help=f"relaxation of k and omega: a factor in (0, 1], {FOLLOW_ALPHA_U!r} (follow alpha_u) "
+                   f"or {K_OMEGA_ACTION!r}: a third action alpha_t, in [0.2, 0.95] unless "
+                   f"--config sets the box "
+                   f"(default: 0.8, the paper's code's; a --case keeps its own)")
     p.add_argument("--max-iterations", type=positive_int, help="iteration cap per episode (default 4000)")
+    p.add_argument("--residual-features", type=positive_int, metavar="N", help="observe the log10 initial "
+                   "residuals of the criterion's fields at the last N step boundaries (default 0)")
+    for name, text in OBSERVE_SWITCHES:
+        p.add_argument("--" + name.replace("_", "-"), action="store_true", default=None, help=text)
     p.add_argument("--reward", choices=REWARDS, help="the cost an episode minimises: SIMPLE iterations "
                    "(default, the paper's), the linear solvers' inner iterations, or the solver's CPU "
                    "seconds (not bit-reproducible)")

@@ -52,7 +52,16 @@ def user_case_config(cfg: FoamEnvConfig, explicit: Iterable[str]) -> FoamEnvConf
         raise OpenFOAMNotFoundError(f"{err} (it reads the case's own criterion and action box; without "
                                     f"OpenFOAM here, set convergence, action_low and action_high in "
                                     f'--config\'s "foam" section)') from None
-    return dataclasses.replace(cfg, **own).validate()
+    return dataclasses.replace(cfg, **_with_alpha_t_bounds(own, cfg.action_size)).validate()
+
+
+def _with_alpha_t_bounds(own: dict[str, Any], size: int) -> dict[str, Any]:
+    """The case's own (alpha_u, alpha_p) box with alpha_t's bounds for a 3-entry action: alpha_u's (the
+    turbulence fields followed alpha_u in the paper's setup, so its tolerated range is the one known)."""
+    if size != 3 or "action_low" not in own:
+        return own
+    return {**own, "action_low": (*own["action_low"], own["action_low"][0]),
+            "action_high": (*own["action_high"], own["action_high"][0])}
 
 
 def foam_config_to_json(cfg: FoamEnvConfig) -> dict[str, Any]:
@@ -75,8 +84,9 @@ def foam_config_from_json(data: Any) -> FoamEnvConfig:
     for name in _TUPLE_FIELDS:
         if values.get(name) is not None:
             values[name] = _as_tuple(name, values[name])
-    if isinstance(values.get("inlet_velocity"), list):
-        values["inlet_velocity"] = _as_tuple("inlet_velocity", values["inlet_velocity"])
+    for name in ("inlet_velocity", "step_height"):  # a number, or a range as a list
+        if isinstance(values.get(name), list):
+            values[name] = _as_tuple(name, values[name])
     if "convergence" in values:
         if not isinstance(values["convergence"], Mapping):
             raise ValueError(f"foam config convergence: expected {{field: threshold}}, got "

@@ -23,13 +23,13 @@ from jaxsimrl.evaluation.foam_policy import PolicyActor
 
 
 class ConstantController:
-    """The same (alpha_u, alpha_p) at every step."""
+    """The same factors (alpha_u, alpha_p[, alpha_t]) at every step."""
 
     repeats = False
 
     def __init__(self, name: str, factors: Sequence[float]) -> None:
         self.name = name
-        self.factors = np.asarray(factors, np.float64).reshape(2)
+        self.factors = np.asarray(factors, np.float64).reshape(-1)
 
     def begin(self, uid: int) -> None:
         pass

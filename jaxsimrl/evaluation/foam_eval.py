@@ -43,7 +43,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from foam_bridge.config import STEP_HEIGHT_H, TEST_CONVERGENCE, FoamEnvConfig, without_convergence_test
+from foam_bridge.config import (
+    BUILTIN_RELAX_K_OMEGA,
+    STEP_HEIGHT_H,
+    TEST_CONVERGENCE,
+    FoamEnvConfig,
+    without_convergence_test,
+)
 from jaxsimrl.evaluation.foam_runner import EpisodeResult, Job
 from jaxsimrl.runs.atomic import atomic_write_json, atomic_write_text
 
@@ -84,6 +90,8 @@ class EvalSpec:
     baseline_grid: Path | None = None
     grid_alpha_u: tuple[float, ...] = DEFAULT_GRID
     grid_alpha_p: tuple[float, ...] = DEFAULT_GRID
+    #: alpha_t of that grid for a run with the k/omega action (None: the paper's 0.8 only).
+    grid_alpha_t: tuple[float, ...] | None = None
     out: Path | None = None
     controllers: tuple[str, ...] = CONTROLLERS
     reference_iterations: int | None = None
@@ -119,7 +127,7 @@ class EvalSpec:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
-        for name in ("grid_alpha_u", "grid_alpha_p"):
+        for name in ("grid_alpha_u", "grid_alpha_p", *(("grid_alpha_t",) if self.grid_alpha_t else ())):
             values = getattr(self, name)
             if not values or not all(math.isfinite(v) and 0 < v <= 1 for v in values):
                 raise ValueError(f"{name}: relaxation factors must be in (0, 1], got {list(values)}")
@@ -138,10 +146,25 @@ class Baseline:
     alpha_p: float
     source: str
     grid_iterations: int
+    alpha_t: float | None = None  # the k/omega factor of a 3-D grid's best cell
 
     @property
-    def factors(self) -> tuple[float, float]:
-        return self.alpha_u, self.alpha_p
+    def factors(self) -> tuple[float, ...]:
+        return (self.alpha_u, self.alpha_p, *(() if self.alpha_t is None else (self.alpha_t,)))
+
+
+def as_action(cfg: FoamEnvConfig, factors: Sequence[float]) -> tuple[float, ...]:
+    """A constant's factors as an action of ``cfg``. A 2-factor constant on a config with the k/omega
+    action keeps the k/omega factor 2-factor runs had (BUILTIN_RELAX_K_OMEGA, the paper's and the
+    tutorial's 0.8); a 3-factor constant needs that action (one-line ValueError otherwise)."""
+    values = tuple(float(f) for f in factors)
+    if len(values) == cfg.action_size:
+        return values
+    if len(values) == 2:
+        return (*values, BUILTIN_RELAX_K_OMEGA)
+    raise ValueError(f"the constant {values} sets alpha_t (k/omega) but this run's policy sets only "
+                     f"(alpha_u, alpha_p), k/omega at {cfg.k_omega_relaxation}: evaluate a run trained with "
+                     f"--relax-k-omega action, or give a grid without alpha_t")
 
 
 def _positive(name: str, values: Sequence[float]) -> None:
@@ -187,7 +210,8 @@ def eval_config(train: FoamEnvConfig, spec: EvalSpec, step_height: float | None,
         cfg = dataclasses.replace(cfg, confirm_alpha_u=spec.confirm_alpha_u)
     if step_height is not None:
         cfg = dataclasses.replace(cfg, step_height=step_height)
-    return grid_config(cfg, [c[0] for c in constants], [c[1] for c in constants])
+    third = [c[2] for c in constants] if cfg.action_size == 3 else None
+    return grid_config(cfg, [c[0] for c in constants], [c[1] for c in constants], third)
 
 
 def baseline_from_csv(path: str | Path) -> Baseline:
@@ -204,11 +228,10 @@ def baseline_from_csv(path: str | Path) -> Baseline:
     best = best_cell(cells)
     if best is None:
         raise ValueError(f"--baseline-grid {path}: no converged cell to take the best constant from")
-    if not all(0 < f <= 1 for f in (best.alpha_u, best.alpha_p)):
-        raise ValueError(f"--baseline-grid {path}: best cell ({best.alpha_u}, {best.alpha_p}) is outside "
-                         f"(0, 1]")
+    if not all(0 < f <= 1 for f in best.factors):
+        raise ValueError(f"--baseline-grid {path}: best cell {best.factors} is outside (0, 1]")
     return Baseline(best.alpha_u, best.alpha_p, f"grid.csv {path} (best converged cell, as recorded there)",
-                    best.iterations)
+                    best.iterations, best.alpha_t)
 
 
 def baseline_from_grid(spec: EvalSpec, cfg: FoamEnvConfig, velocity: float, geometry: str,
@@ -217,10 +240,11 @@ def baseline_from_grid(spec: EvalSpec, cfg: FoamEnvConfig, velocity: float, geom
     from foam_bridge.grid import best_cell, plot_grid, run_grid, write_grid_csv
 
     def on_cell(cell: Any) -> None:
-        say(f"grid ({cell.alpha_u:g}, {cell.alpha_p:g}): {cell.outcome} @ {cell.iterations} it")
+        say(f"grid {_text(cell.factors)}: {cell.outcome} @ {cell.iterations} it")
 
+    alpha_t = (spec.grid_alpha_t or (BUILTIN_RELAX_K_OMEGA,)) if cfg.action_size == 3 else None
     cells = run_grid(dataclasses.replace(cfg, inlet_velocity=velocity), spec.grid_alpha_u, spec.grid_alpha_p,
-                     pool=spec.pool, on_cell=on_cell)
+                     pool=spec.pool, on_cell=on_cell, alpha_t=alpha_t)
     out = spec.output_dir
     write_grid_csv(cells, out / GRID_CSV)
     title = f"best constant search: V = {velocity:g} m/s, {geometry}, test criterion"
@@ -230,8 +254,13 @@ def baseline_from_grid(spec: EvalSpec, cfg: FoamEnvConfig, velocity: float, geom
         raise ValueError(f"no cell of the baseline grid converged at {velocity:g} m/s on {geometry} (see "
                          f"{out / GRID_CSV}); give --baseline-grid or other --grid-alpha-u/--grid-alpha-p")
     source = (f"grid run by eval-foam at V = {velocity:g} m/s on {geometry}: alpha_u in "
-              f"{list(spec.grid_alpha_u)}, alpha_p in {list(spec.grid_alpha_p)} ({out / GRID_CSV})")
-    return Baseline(best.alpha_u, best.alpha_p, source, best.iterations)
+              f"{list(spec.grid_alpha_u)}, alpha_p in {list(spec.grid_alpha_p)}"
+              + ("" if alpha_t is None else f", alpha_t in {list(alpha_t)}") + f" ({out / GRID_CSV})")
+    return Baseline(best.alpha_u, best.alpha_p, source, best.iterations, best.alpha_t)
+
+
+def _text(factors: Sequence[float]) -> str:
+    return "(" + ", ".join(f"{f:g}" for f in factors) + ")"
 
 
 def episode_uid(controller: str, geometry: str, velocity: float, sample: int) -> int:
@@ -265,16 +294,18 @@ def make_controllers(run: Any, baseline: Baseline | None, pool: int, seed: int,
     makers = {
         "learned_deterministic": lambda: LearnedController("learned_deterministic", actor, True, seed),
         "learned_stochastic": lambda: LearnedController("learned_stochastic", actor, False, seed),
-        "best_constant": lambda: ConstantController("best_constant", baseline.factors),
-        "tutorial_defaults": lambda: ConstantController("tutorial_defaults", TUTORIAL_DEFAULTS),
+        "best_constant": lambda: ConstantController("best_constant", as_action(run.foam, baseline.factors)),
+        "tutorial_defaults": lambda: ConstantController("tutorial_defaults",
+                                                        as_action(run.foam, TUTORIAL_DEFAULTS)),
         "random": lambda: RandomController("random", run.foam.action_low, run.foam.action_high, seed),
     }
     return {name: makers[name]() for name in names}
 
 
-def constant_factors(baseline: Baseline | None) -> list[tuple[float, float]]:
-    """The constant controllers' factors (the env's action box must hold them)."""
-    return [TUTORIAL_DEFAULTS] if baseline is None else [baseline.factors, TUTORIAL_DEFAULTS]
+def constant_factors(baseline: Baseline | None, cfg: FoamEnvConfig) -> list[tuple[float, ...]]:
+    """The constant controllers' actions (the env's action box must hold them)."""
+    chosen = [TUTORIAL_DEFAULTS] if baseline is None else [baseline.factors, TUTORIAL_DEFAULTS]
+    return [as_action(cfg, factors) for factors in chosen]
 
 
 def evaluate_foam(spec: EvalSpec, on_result: Callable[[EpisodeResult, int, int], None] | None = None,
@@ -295,10 +326,11 @@ def evaluate_foam(spec: EvalSpec, on_result: Callable[[EpisodeResult, int, int],
         first = next(iter(shapes))
         say(f"no --baseline-grid: searching the best constant on a grid at V = {spec.velocities[0]:g} m/s, "
             f"{first}")
-        grid_cfg = eval_config(run.foam, spec, shapes[first], [TUTORIAL_DEFAULTS])
+        grid_cfg = eval_config(run.foam, spec, shapes[first], constant_factors(None, run.foam))
         baseline = baseline_from_grid(spec, grid_cfg, spec.velocities[0], first, say)
     if baseline is not None:
-        say(f"best constant ({baseline.alpha_u:g}, {baseline.alpha_p:g}) from {baseline.source}")
+        as_action(run.foam, baseline.factors)  # a 3-D grid's best cell for a 2-action policy: say so now
+        say(f"best constant {_text(baseline.factors)} from {baseline.source}")
     controllers = make_controllers(run, baseline, spec.pool, spec.seed, spec.controllers)
     jobs = plan(list(shapes), spec.velocities, {k: c.repeats for k, c in controllers.items()}, spec.samples)
     results, references = _run_plan(spec, run, shapes, jobs, controllers, baseline, on_result)
@@ -317,7 +349,7 @@ def _run_plan(spec: EvalSpec, run: Any, shapes: dict[str, float | None], jobs: l
     from jaxsimrl.evaluation.foam_runner import run_episodes
 
     results: list[EpisodeResult] = []
-    references = References(spec, baseline)
+    references = References(spec, baseline, run.foam)
     done, total = 0, len(jobs) + len(references.plan(shapes, spec.velocities))
 
     def progress(result: EpisodeResult) -> None:
@@ -327,7 +359,7 @@ def _run_plan(spec: EvalSpec, run: Any, shapes: dict[str, float | None], jobs: l
             on_result(result, done, total)
 
     for name, height in shapes.items():
-        cfg = eval_config(run.foam, spec, height, constant_factors(baseline))
+        cfg = eval_config(run.foam, spec, height, constant_factors(baseline, run.foam))
         if references.wanted:
             references.run(cfg, name, spec.velocities, spec.pool, progress)
         mine = [j for j in jobs if j.geometry == name]
@@ -340,11 +372,11 @@ class References:
     """The reference runs of an evaluation (none without ``spec.reference_iterations``) and the error
     of every run's final U field against its (geometry, velocity)'s reference."""
 
-    def __init__(self, spec: EvalSpec, baseline: Baseline | None) -> None:
+    def __init__(self, spec: EvalSpec, baseline: Baseline | None, cfg: FoamEnvConfig) -> None:
         from jaxsimrl.evaluation.foam_reference_cache import ReferenceCache
 
         self.iterations = spec.reference_iterations
-        self.factors = baseline.factors if baseline is not None else TUTORIAL_DEFAULTS
+        self.factors = as_action(cfg, baseline.factors if baseline is not None else TUTORIAL_DEFAULTS)
         self.cache = None if spec.reference_cache is None else ReferenceCache(spec.reference_cache)
         self.runs: dict[tuple[str, float], EpisodeResult] = {}
         self.final_residuals: dict[tuple[str, float], dict[str, float]] = {}
@@ -498,12 +530,12 @@ def build_report(spec: EvalSpec, run: Any, baseline: Baseline | None, shapes: di
                 cell = [r for r in rows if r["controller"] == controller and r["geometry"] == geometry
                         and r["velocity"] == float(velocity)]
                 table[controller][geometry][f"{velocity:g}"] = cell_summary(cell, run.foam.max_iterations)
-    case = eval_config(run.foam, spec, None, constant_factors(baseline))
+    case = eval_config(run.foam, spec, None, constant_factors(baseline, run.foam))
     described = {
         "learned_deterministic": "the policy's mean action, one run per cell",
         "learned_stochastic": f"actions sampled from the policy, {spec.samples} runs per cell",
         "best_constant": None if baseline is None else
-        f"constant ({baseline.alpha_u:g}, {baseline.alpha_p:g}), one run per cell",
+        f"constant {_text(baseline.factors)}, one run per cell",
         "tutorial_defaults": f"constant {TUTORIAL_DEFAULTS} (U, p), k/omega as the case, one run per cell",
         "random": f"uniform in the action box at every step, {spec.samples} runs per cell",
     }
@@ -518,7 +550,8 @@ def build_report(spec: EvalSpec, run: Any, baseline: Baseline | None, shapes: di
         "action_box": {"low": list(run.foam.action_low), "high": list(run.foam.action_high)},
         "baseline": None if baseline is None else {
             "alpha_u": baseline.alpha_u, "alpha_p": baseline.alpha_p, "source": baseline.source,
-            "grid_iterations": baseline.grid_iterations},
+            "grid_iterations": baseline.grid_iterations,
+            **({} if baseline.alpha_t is None else {"alpha_t": baseline.alpha_t})},
         "reference": None if references is None else references.summary(),
         "results": table,
         "wall_time_s": wall_time_s,

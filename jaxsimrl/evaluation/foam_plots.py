@@ -6,7 +6,7 @@
 - ``mean_V<v>.png`` per velocity: mean +- std per controller of the costs of the converged runs
   (rows: SIMPLE iterations, wall time, solver CPU time, linear-solver iterations, and with reference
   runs the U error), one column per geometry.
-- ``factors.png``: the learned policy's relaxation factors alpha_u and alpha_p against the SIMPLE
+- ``factors.png``: the learned policy's relaxation factors alpha_u, alpha_p (and alpha_t) against the SIMPLE
   iteration (each action holds for ``interval`` iterations), per geometry and velocity: the
   deterministic run bold, the stochastic samples thin; the best constant dashed.
 - ``velocities.png``: SIMPLE iterations against the inlet velocity per controller (the mean of the
@@ -32,6 +32,8 @@ LABELS = {"learned_deterministic": "learned\n(mean)", "learned_stochastic": "lea
 COLOURS = {"learned_deterministic": "tab:blue", "learned_stochastic": "tab:cyan",
            "best_constant": "tab:green", "tutorial_defaults": "tab:olive", "random": "tab:red"}
 #: (controller, line width, opacity) of the factor trajectories: the samples thin, the mean action bold.
+#: The action's factors, one row of factors.png each (alpha_t only for a run with the k/omega action).
+FACTOR_KEYS = ("alpha_u", "alpha_p", "alpha_t")
 LEARNED_STYLE = (("learned_stochastic", 0.8, 0.35), ("learned_deterministic", 2.2, 1.0))
 PALETTE = ("tab:blue", "tab:orange", "tab:purple", "tab:brown", "tab:pink", "tab:gray")
 #: (key in a cell summary, axis label) of the mean +- std figure's rows.
@@ -160,10 +162,12 @@ def factor_steps(actions: Sequence[Sequence[float]], iterations: int, interval: 
 
 
 def plot_factors(report: dict[str, Any], path: Path) -> Path:
-    """The learned policy's (alpha_u, alpha_p) against the SIMPLE iteration (see the module docstring)."""
+    """The learned policy's (alpha_u, alpha_p[, alpha_t]) against the SIMPLE iteration (see the module
+    docstring); one row per factor of the action."""
     shapes = list(report["geometries"])
     interval = int(report["case"]["interval"])
-    fig, axes = _figure(2, len(shapes), 6.0, 3.2)
+    keys = FACTOR_KEYS[:len(report["action_box"]["low"])]
+    fig, axes = _figure(len(keys), len(shapes), 6.0, 3.2)
     for column, geometry in enumerate(shapes):
         for index, velocity in enumerate(report["velocities"]):
             colour = PALETTE[index % len(PALETTE)]
@@ -174,12 +178,12 @@ def plot_factors(report: dict[str, Any], path: Path) -> Path:
                 for run in cells.get(name, {"runs": []})["runs"]:
                     _draw_factors(axes[:, column], run, interval, style, label)
         baseline = report["baseline"]
-        for row, (symbol, key) in enumerate(((r"$\alpha_u$", "alpha_u"), (r"$\alpha_p$", "alpha_p"))):
+        for row, key in enumerate(keys):
             ax = axes[row, column]
-            if baseline is not None:
+            if baseline is not None and baseline.get(key) is not None:
                 ax.axhline(baseline[key], color="tab:green", ls="--", lw=1,
                            label="best constant" if row == 0 else None)
-            ax.set_ylabel(symbol)
+            ax.set_ylabel(rf"$\alpha_{key[-1]}$")
             ax.set_ylim(*_factor_limits(report, key))
             ax.set_xlabel("SIMPLE iteration")
             ax.grid(alpha=0.3)
@@ -191,11 +195,11 @@ def plot_factors(report: dict[str, Any], path: Path) -> Path:
 
 def _factor_limits(report: dict[str, Any], key: str) -> tuple[float, float]:
     """The training action box of one factor (and the best constant), with a margin."""
-    index = ("alpha_u", "alpha_p").index(key)
+    index = FACTOR_KEYS.index(key)
     box = report["action_box"]
     baseline = report["baseline"]
     low, high = box["low"][index], box["high"][index]
-    if baseline is not None:
+    if baseline is not None and baseline.get(key) is not None:
         low, high = min(low, baseline[key]), max(high, baseline[key])
     return low - 0.03, high + 0.03
 

@@ -20,7 +20,7 @@ from typing import Any
 
 LORENZ_OBS_NAMES = ("x", "y", "z", "dx/dt", "dy/dt", "dz/dt")
 LORENZ_ACTION_NAMES = ("d sigma", "d rho", "d beta")
-FOAM_ACTION_NAMES = ("alpha_u", "alpha_p")
+FOAM_ACTION_NAMES = ("alpha_u", "alpha_p")  # a 3-entry action adds "alpha_t" (foam_spec)
 #: The foam observation's first component: (mean inlet |U|^2 + mean cells |U|^2) / state_scale, the
 #: paper's state divided by U_ref^2 = 44.2^2 by default (foam_bridge.env).
 FOAM_STATE_NAME = "state"
@@ -50,6 +50,7 @@ def lorenz_spec(record: dict[str, Any]) -> EnvSpec:
 def foam_spec(record: dict[str, Any]) -> EnvSpec:
     """train-foam's env: the FoamEnvConfig of config.json's "foam" section (a one-line ValueError if it
     is missing or bad) and its action box."""
+    from foam_bridge.config import ACTION_NAMES
     from jaxsimrl.envs.foam_config import foam_config_from_json
     from jaxsimrl.evaluation.foam_policy import FoamActionBox
     from jaxsimrl.introspect.foam_rollout import foam_rollout
@@ -57,8 +58,8 @@ def foam_spec(record: dict[str, Any]) -> EnvSpec:
     if "foam" not in record:
         raise ValueError("config.json names env 'foam' but has no 'foam' section (the FoamEnvConfig)")
     cfg = foam_config_from_json(record["foam"])
-    return EnvSpec(FoamActionBox(cfg), cfg, foam_obs_names(cfg), FOAM_ACTION_NAMES, cfg.observation_size,
-                   foam_rollout)
+    names = ACTION_NAMES[:cfg.action_size]
+    return EnvSpec(FoamActionBox(cfg), cfg, foam_obs_names(cfg), names, cfg.observation_size, foam_rollout)
 
 
 def foam_obs_names(cfg: Any) -> tuple[str, ...]:
@@ -69,6 +70,12 @@ def foam_obs_names(cfg: Any) -> tuple[str, ...]:
     for block in range(blocks):
         lag = blocks - 1 - block
         names += [f"log10 r_{field}" + (f" (t-{lag})" if lag else "") for field in cfg.convergence]
+    if cfg.observe_progress:
+        names.append("progress")
+    if cfg.observe_action:
+        from foam_bridge.config import ACTION_NAMES
+
+        names += [f"last {name}" for name in ACTION_NAMES[:cfg.action_size]]
     return tuple(names)
 
 

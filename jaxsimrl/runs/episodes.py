@@ -1,10 +1,12 @@
 """episodes.csv: one row per finished episode of a host-env (OpenFOAM) training run, and its statistics.
 
     index, env, update, seed, inlet_velocity, steps, iterations, linear_iterations, solver_time_s, return,
-    outcome, cause, wall_time_s, solver_idle_s, actions, node
+    outcome, cause, wall_time_s, solver_idle_s, actions, node, step_height
 
 ``update`` is the PPO update whose rollout the episode ended in (1-based); ``actions`` is the JSON list of
-the (alpha_u, alpha_p) pairs it took. ``linear_iterations`` (inner iterations of every linear solve) and
+the factors it took ((alpha_u, alpha_p) pairs, or triples with alpha_t). ``step_height`` is the episode's
+step height in m (drawn per episode with a range of heights; empty for a user's case and in files
+written before it existed). ``linear_iterations`` (inner iterations of every linear solve) and
 ``solver_time_s`` (the solver's CPU seconds) are the episode's other costs whatever the run's reward (empty
 in files written before they existed). The file is rewritten whole and atomically after every update,
 before that update's checkpoint; on resume from checkpoint N the rows of updates after N are dropped (the
@@ -29,11 +31,13 @@ from jaxsimrl.runs.atomic import atomic_write_text
 
 EPISODES_FILE = "episodes.csv"
 COLUMNS = ("index", "env", "update", "seed", "inlet_velocity", "steps", "iterations", "linear_iterations",
-           "solver_time_s", "return", "outcome", "cause", "wall_time_s", "solver_idle_s", "actions", "node")
+           "solver_time_s", "return", "outcome", "cause", "wall_time_s", "solver_idle_s", "actions", "node",
+           "step_height")
 #: Float columns; an empty cell reads as NaN.
-_FLOATS = ("inlet_velocity", "linear_iterations", "solver_time_s", "return", "wall_time_s", "solver_idle_s")
+_FLOATS = ("inlet_velocity", "linear_iterations", "solver_time_s", "return", "wall_time_s", "solver_idle_s",
+           "step_height")
 #: Columns that files of older versions lack (read as NaN there).
-_ADDED_LATER = ("linear_iterations", "solver_time_s")
+_ADDED_LATER = ("linear_iterations", "solver_time_s", "step_height")
 #: The paper plots the moving average of iterations to converge over this many episodes.
 MOVING_WINDOW = 100
 #: EpisodeLog.systematic_failure needs at least this many episodes (and at least one per env).
@@ -46,6 +50,7 @@ def episode_row(env_id: int, update: int, info: dict[str, Any]) -> dict[str, Any
     actions = [[round(float(a), 6) for a in pair] for pair in record.get("actions", [])]
     return {"env": int(env_id), "update": int(update), "seed": record.get("seed"),
             "inlet_velocity": _number(record.get("inlet_velocity")), "steps": len(actions),
+            "step_height": _number(record.get("step_height")),
             "iterations": int(record.get("iterations", info.get("iterations", 0))),
             "linear_iterations": _number(record.get("linear_iterations")),
             "solver_time_s": _number(record.get("solver_time_s")),
