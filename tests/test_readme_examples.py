@@ -1,8 +1,14 @@
-"""Every ```python block of README.md runs as written, as a script in a fresh working directory.
+"""Every example of README.md and docs/*.md runs as written, as a script in a fresh working directory.
 
-Each block is its own script (``python example.py``) with the current directory a new temporary one,
-so relative paths in the examples (``work_dir="runs/foam"``) resolve there, and nothing leaks between
-blocks. Blocks that use foam_bridge run the real simpleFoam (the examples use coarse meshes).
+What runs: every ```python block (``python example.py``) and every ```bash block (``bash example.sh``,
+with ``-e`` and ``pipefail``). Blocks fenced ```shell are commands shown, not run (long trainings,
+cluster set-up); tests/test_docs.py still checks that each of their ``jaxsimrl`` commands parses.
+
+Each block is its own script with the current directory a new temporary one, so relative paths in the
+examples (``work_dir="runs/foam"``) resolve there, and nothing leaks between blocks. A shell block finds
+the project's environment as ``.venv`` there (a link to the one running the tests), as it would in the
+repository root. A block that appears on two pages (the README's tour is also in docs/getting-started.md)
+runs once. Blocks that use foam_bridge or a foam command run the real simpleFoam (on coarse meshes).
 """
 
 from __future__ import annotations
@@ -17,33 +23,61 @@ import pytest
 from foam_marks import HAVE_OPENFOAM
 
 ROOT = Path(__file__).resolve().parent.parent
-BLOCKS = re.findall(r"^```python\n(.*?)^```", (ROOT / "README.md").read_text(), re.MULTILINE | re.DOTALL)
+PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+FENCE = re.compile(r"^```(python|bash)\n(.*?)^```", re.MULTILINE | re.DOTALL)
 #: Generous: the slowest example (a PPO training run) takes about a minute on a quiet 2-core machine.
 TIMEOUT_S = 900
+#: The interpreter of a block, by its fence's language.
+RUNNERS = {"python": [sys.executable], "bash": ["bash", "-eo", "pipefail"]}
+IN_A_VENV = (Path(sys.prefix) / "bin" / "activate").is_file()
+
+
+def _blocks() -> dict[tuple[str, str], str]:
+    """(language, code) -> where it first appears (``page:number``), in page order."""
+    blocks: dict[tuple[str, str], str] = {}
+    for page in PAGES:
+        for number, match in enumerate(FENCE.finditer(page.read_text())):
+            blocks.setdefault((match.group(1), match.group(2)), f"{page.relative_to(ROOT)}:{number}")
+    return blocks
+
+
+BLOCKS = _blocks()
+
+
+def _uses_openfoam(code: str) -> bool:
+    return "foam_bridge" in code or re.search(r"\bjaxsimrl (grid|train|eval)-foam\b", code) is not None
 
 
 def _params() -> list:
     params = []
-    for number, code in enumerate(BLOCKS):
+    for (language, code), where in BLOCKS.items():
         first = code.strip().splitlines()[0] if code.strip() else "(empty)"
         marks = []
-        if "foam_bridge" in code:
+        if _uses_openfoam(code):
             marks = [pytest.mark.openfoam,
                      pytest.mark.skipif(not HAVE_OPENFOAM, reason="simpleFoam not on PATH")]
-        params.append(pytest.param(code, id=f"block{number}: {first[:40]}", marks=marks))
+        if language == "bash":
+            marks.append(pytest.mark.skipif(not IN_A_VENV, reason="the tests run outside a virtual env"))
+        params.append(pytest.param(language, code, id=f"{where}: {first[:40].rstrip()}", marks=marks))
     return params
 
 
-def test_the_readme_has_python_examples():
-    assert len(BLOCKS) >= 4  # the Lorenz env, PPO, FoamCaseEnv, BatchedFoamEnv, gymnasium ids, ...
+def test_the_docs_have_examples() -> None:
+    languages = [language for language, _ in BLOCKS]
+    # the Lorenz env, load_policy, PPO, FoamCaseEnv, BatchedFoamEnv, gymnasium ids, ...; the tour
+    assert languages.count("python") >= 7 and languages.count("bash") >= 1
+    readme = FENCE.findall((ROOT / "README.md").read_text())
+    assert readme, "the README's five-minute tour should be a block the tests run"
 
 
-@pytest.mark.parametrize("code", _params())
-def test_readme_example_runs_as_written(code: str, tmp_path: Path) -> None:
-    script = tmp_path / "example.py"
+@pytest.mark.parametrize(("language", "code"), _params())
+def test_example_runs_as_written(language: str, code: str, tmp_path: Path) -> None:
+    script = tmp_path / ("example.py" if language == "python" else "example.sh")
     script.write_text(code)
+    if language == "bash":
+        (tmp_path / ".venv").symlink_to(sys.prefix)
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
-    result = subprocess.run([sys.executable, str(script)], cwd=tmp_path, env=env, capture_output=True,
+    result = subprocess.run([*RUNNERS[language], str(script)], cwd=tmp_path, env=env, capture_output=True,
                             text=True, timeout=TIMEOUT_S, check=False)
     assert result.returncode == 0, result.stderr[-3000:]
     leftovers = [p for p in tmp_path.rglob("*") if p.is_dir() and p.name.startswith("env_")]
