@@ -67,9 +67,10 @@ class LocalBackend(Backend):
 
     name = "local"
 
-    def __init__(self, cfg: Any, num_envs: int, pool: int, work_dir: Path) -> None:
+    def __init__(self, cfg: Any, num_envs: int, pool: int, work_dir: Path, checked: bool = False) -> None:
         super().__init__(cfg, num_envs, pool)
-        preflight(cfg)
+        if not checked:  # ``checked``: the caller has just run the same checks (jaxsimrl solve)
+            preflight(cfg)
         self.work_dir = Path(work_dir)
         self._ctx = mp.get_context("spawn")
         self._procs: list[Any] = [None] * pool

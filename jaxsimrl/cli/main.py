@@ -14,7 +14,8 @@ from jaxsimrl.cli.errors import OneLineArgumentParser, UsageError
 
 # Modules that contribute subcommands.
 SUBCOMMAND_MODULES = ("jaxsimrl.cli.lorenz", "jaxsimrl.cli.eval_lorenz", "jaxsimrl.cli.foam",
-                      "jaxsimrl.cli.train_foam", "jaxsimrl.cli.eval_foam", "jaxsimrl.cli.plot")
+                      "jaxsimrl.cli.train_foam", "jaxsimrl.cli.eval_foam", "jaxsimrl.cli.plot",
+                      "jaxsimrl.cli.solve")
 
 
 def build_parser() -> OneLineArgumentParser:

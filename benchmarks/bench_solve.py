@@ -1,0 +1,58 @@
+"""``jaxsimrl solve --compare`` on OpenFOAM's simpleFoam tutorials (their own mesh and settings).
+
+    .venv/bin/python benchmarks/bench_solve.py pitzDaily airFoil2D backwardFacingStep2D --out /tmp/bench
+
+Prints one row per case: iterations and wall time of the controlled run and of the case's own settings,
+their ratios, solve's overhead beyond the solver's own work, and whether a fallback fired. Nothing is
+tuned on these cases. Appends the rows as JSON lines to OUT/rows.jsonl.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+from pathlib import Path
+
+from jaxsimrl.solve import solve_case
+
+TUTORIALS = Path("/usr/share/doc/openfoam-examples/examples/incompressible/simpleFoam")
+
+
+def bench(name: str, root: Path) -> dict:
+    """Solve one tutorial (a fresh copy) with --compare; its row."""
+    case = root / name
+    shutil.rmtree(case, ignore_errors=True)
+    shutil.rmtree(root / f"{name}.solved", ignore_errors=True)
+    shutil.copytree(TUTORIALS / name, case)
+    data = solve_case(case, root / f"{name}.solved", compare=True).data
+    result, own = data["result"], data["compare"]["own"]
+    return {"case": name, "converged": result["converged"], "iterations": result["iterations"],
+            "wall_s": round(result["wall_time_s"], 2), "own_converged": own["converged"],
+            "own_iterations": own["iterations"], "own_wall_s": round(own["wall_time_s"], 2),
+            "ratio_iterations": round(own["ratio_iterations"], 3),
+            "ratio_wall": round(own["ratio_wall_time"], 3),
+            "ratio_cpu": round(own["ratio_solver_cpu_time"], 3),
+            "overhead_pct": _percent(result["overhead_fraction"]),
+            "fallback": [event["kind"] for event in data["fallback"]], "fields_from": result["fields_from"]}
+
+
+def _percent(fraction: float | None) -> float | None:
+    return None if fraction is None else round(100 * fraction, 1)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("cases", nargs="+")
+    parser.add_argument("--out", type=Path, required=True)
+    args = parser.parse_args()
+    args.out.mkdir(parents=True, exist_ok=True)
+    for name in args.cases:
+        row = bench(name, args.out)
+        print(json.dumps(row), flush=True)
+        with open(args.out / "rows.jsonl", "a") as rows:
+            rows.write(json.dumps(row) + "\n")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,71 @@
+"""``jaxsimrl solve CASE``: converge a user's simpleFoam case with a trained controller (jaxsimrl.solve).
+
+    jaxsimrl solve my_case --out my_case.solved --compare
+
+Writes OUT: the case converged (a normal OpenFOAM case), solve.json, solve.png. Bad input (no such case,
+a decomposed case, a case the bridge cannot drive, a non-empty --out, a bad --policy, OpenFOAM missing)
+is one line on stderr and exit code 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+from jaxsimrl.cli.errors import fail, positive_float, positive_int
+
+
+def register(subparsers: Any) -> None:
+    """Add the ``solve`` subcommand."""
+    from jaxsimrl.cli.foam import check_factor, relaxation_factor
+
+    parser = subparsers.add_parser(
+        "solve", help="converge an OpenFOAM simpleFoam case with a trained controller",
+        description="Copy CASE to --out and run it to convergence with a controller setting the relaxation "
+        "factors (default: the controller shipped with jaxsimrl), never worse than the case's own settings: "
+        "a watchdog hands a stalling or growing run to the case's own factors, and a failed run is replaced "
+        "by the case's own run. Convergence is the case's residualControl, confirmed at a fixed relaxation.")
+    parser.add_argument("case", metavar="CASE", type=Path,
+                        help="a simpleFoam case directory (never modified)")
+    parser.add_argument("--out", type=Path, metavar="DIR", help="output directory, new or empty "
+                        "(default: ./NAME.solved, NAME the case directory's name)")
+    parser.add_argument("--policy", metavar="RUN_DIR", help="a train-foam run directory (default: the "
+                        "shipped controller)")
+    parser.add_argument("--compare", action="store_true", help="also run the case with its own settings, "
+                        "in parallel, and report the savings")
+    parser.add_argument("--compare-constant", type=relaxation_factor, nargs="+", metavar="F",
+                        help="also run the case with constant factors U P [TURBULENCE]")
+    parser.add_argument("--max-iterations", type=positive_int, metavar="N",
+                        help="iteration budget (default: the case's controlDict endTime / deltaT)")
+    parser.add_argument("--confirm-alpha-u", type=check_factor, default=0.9, metavar="A",
+                        dest="confirm_alpha_u", help="the convergence check relaxation cannot move: one "
+                        "SIMPLE iteration at alpha_u = A from the converged fields (default 0.9)")
+    parser.add_argument("--step-timeout", type=positive_float, default=300.0, metavar="S",
+                        help="watchdog on the solver: seconds one step of 100 iterations may take "
+                        "(default 300)")
+    parser.add_argument("--inlet-patch", default="inlet", metavar="NAME",
+                        help="the patch whose mean |U|^2 the controller observes (default: inlet)")
+    parser.add_argument("--quiet", action="store_true", help="print only the summary")
+    parser.set_defaults(func=run_solve)
+
+
+def run_solve(args: argparse.Namespace) -> int:
+    """Run solve_case and print its summary."""
+    from foam_bridge.errors import CaseError, OpenFOAMNotFoundError
+    from jaxsimrl.solve import solve_case
+
+    if args.compare_constant is not None and len(args.compare_constant) not in (2, 3):
+        fail(f"--compare-constant takes 2 or 3 factors (U P [TURBULENCE]), got {len(args.compare_constant)}")
+    out = args.out if args.out is not None else Path.cwd() / f"{Path(args.case).resolve().name}.solved"
+    say = (lambda text: None) if args.quiet else (lambda text: print(text, flush=True))
+    try:
+        report = solve_case(args.case, out, policy=args.policy, compare=args.compare,
+                            compare_constant=args.compare_constant, max_iterations=args.max_iterations,
+                            confirm_alpha_u=args.confirm_alpha_u, step_timeout_s=args.step_timeout,
+                            inlet_patch=args.inlet_patch, say=say)
+    except (ValueError, CaseError, OpenFOAMNotFoundError) as err:
+        fail(" ".join(str(err).split()))
+    print(report.summary())
+    print(f"wrote {out} (the case, log.simpleFoam, solve.json, solve.png)")
+    return 0 if report.converged else 1

@@ -1,0 +1,93 @@
+"""The controlled run: one episode of the bridge in a spawned worker, the policy and the watchdog here.
+
+The solver runs in foam_bridge's local backend (a spawned worker process: no fork of this JAX-loaded
+process); this process only acts. Every step's factors and residuals, and the watchdog's decision, are
+recorded for the report.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from foam_bridge.config import FoamEnvConfig
+from jaxsimrl.solve.watchdog import Watchdog, WatchdogSettings
+
+
+@dataclass
+class ControlledRun:
+    """What the controlled episode did: outcome, K, its env record, the steps and the fallback events."""
+
+    outcome: str = "crashed"
+    cause: str = ""
+    iterations: int = 0
+    record: dict[str, Any] = field(default_factory=dict)
+    steps: list[dict[str, Any]] = field(default_factory=list)
+    events: list[dict[str, Any]] = field(default_factory=list)
+    inlet_speed: float = float("nan")
+    wall_time_s: float = 0.0
+
+
+def drive(cfg: FoamEnvConfig, policy: Callable[[], Any], fallback: list[float],
+          obs_factor: Callable[[float], float], watchdog: WatchdogSettings,
+          say: Callable[[str], None]) -> ControlledRun:
+    """Run one episode of ``cfg`` with the policy ``policy()`` returns (its deterministic action; asked
+    for once the worker has built the case, so that loading it overlaps that), switching to ``fallback``
+    when the watchdog fires. Bad input (the env rejects the case): one-line ValueError. ``cfg``'s case
+    must have been checked already (jaxsimrl.solve.settings.solve_config does)."""
+    from foam_bridge.backends import BAD_INPUT_ERRORS, Request
+    from foam_bridge.backends.local import LocalBackend
+
+    run = ControlledRun()
+    started = time.monotonic()
+    backend = LocalBackend(cfg, 1, 1, Path(cfg.work_dir), checked=True)
+    try:
+        reply = backend.run([Request(0, "reset", {"seed": 0})])[0]
+        if not reply.ok:
+            raise ValueError(reply.error) if reply.kind in BAD_INPUT_ERRORS else RuntimeError(reply.error)
+        obs, info = reply.value
+        run.inlet_speed = float(info.get("inlet_velocity", float("nan")))
+        _loop(backend, Request, cfg, policy(), fallback, obs, obs_factor(run.inlet_speed),
+              Watchdog(dict(cfg.convergence), watchdog), run, say)
+    finally:
+        backend.close()
+    run.wall_time_s = time.monotonic() - started
+    return run
+
+
+def _loop(backend: Any, request: Any, cfg: FoamEnvConfig, policy: Any, fallback: list[float], obs: Any,
+          scale: float, dog: Watchdog, run: ControlledRun, say: Callable[[str], None]) -> None:
+    state = None
+    while True:
+        if dog.fired is None:
+            seen = np.array(obs, dtype=np.float32)
+            seen[0] *= scale
+            action, state = policy.act(seen, state, deterministic=True)
+            action, source = [float(a) for a in np.asarray(action).reshape(-1)], "controller"
+        else:
+            action, source = list(fallback), "own factors (watchdog)"
+        reply = backend.run([request(0, "step", {"action": np.asarray(action)})])[0]
+        step = {"from_iteration": run.iterations, "action": action, "source": source}
+        if not reply.ok:
+            run.outcome, run.cause = "crashed", reply.error or "the worker died"
+            run.steps.append({**step, "outcome": "crashed"})
+            return
+        obs, _, terminated, truncated, info = reply.value
+        run.iterations, run.outcome = int(info["iterations"]), info["outcome"]
+        run.cause = info.get("cause", "")
+        run.steps.append({**step, "to_iteration": run.iterations, "residuals": info["residuals"],
+                          "outcome": run.outcome})
+        say(f"  {run.iterations:5d} it  factors {', '.join(f'{a:.3f}' for a in action)}  ({source})")
+        if terminated or truncated:
+            run.record = dict(info.get("episode") or {})
+            return
+        reason = dog.check(info["residuals"])
+        if reason:
+            run.events.append({"kind": "watchdog", "at_iteration": run.iterations, "reason": reason,
+                               "then": f"the case's own factors {fallback} from the live fields"})
+            say(f"  watchdog at {run.iterations}: {reason}; the case's own factors from here")

@@ -1,0 +1,192 @@
+"""``solve_case``: converge a user's case with a controller, never worse than the case's own settings.
+
+Layout of ``out`` afterwards: the user's case as a normal OpenFOAM case (their system/, constant/, 0/, the
+converged time directory, ``log.simpleFoam``; foam_bridge.export), ``solve.json`` and ``solve.png``
+(jaxsimrl.solve.report), and with ``compare`` the comparison runs under ``compare/``. ``solve.json`` is
+written first with status "incomplete": a run killed before its end says so; Ctrl-C leaves
+"interrupted"; only a finished run says "complete".
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+from foam_bridge.env import FAILURES
+from foam_bridge.errors import OpenFOAMNotFoundError
+from foam_bridge.export import export_case
+from jaxsimrl.solve.controller import BackgroundLoad, Controller, as_controller, policy_env_config
+from jaxsimrl.solve.drive import ControlledRun, drive
+from jaxsimrl.solve.own import OwnProcess, OwnRun
+from jaxsimrl.solve.report import SolveReport, build_report, write_report, write_status
+from jaxsimrl.solve.settings import (
+    DEFAULT_MAX_ITERATIONS,
+    not_applicable,
+    observation_factor,
+    own_action,
+    read_case_settings,
+    solve_config,
+)
+from jaxsimrl.solve.watchdog import WatchdogSettings
+
+WORK_DIR = ".solve-work"
+COMPARE_DIR = "compare"
+
+
+def solve_case(case: str | Path, out: str | Path, policy: Any = None,
+               compare: bool = False, compare_constant: Sequence[float] | None = None,
+               max_iterations: int | None = None, confirm_alpha_u: float | None = 0.9,
+               watchdog: WatchdogSettings | None = None,
+               action_box: tuple[Sequence[float], Sequence[float]] | None = None,
+               step_timeout_s: float = 300.0, inlet_patch: str = "inlet",
+               say: Callable[[str], None] | None = None) -> SolveReport:
+    """Run ``case`` with the controller (``policy``: a run directory, a :class:`Controller`, a policy from
+    ``jaxsimrl.load_policy``, or None for the shipped one) into ``out``; see the module docstring. Bad
+    input (a missing or decomposed case, a non-empty ``out``, a case the bridge cannot drive, a bad
+    policy): one-line ValueError before any result is claimed. ``action_box`` replaces the case's own box
+    (experiments only); ``inlet_patch``: the patch whose mean |U|^2 the controller observes."""
+    say = say or (lambda text: None)
+    case, out = _check_paths(case, out)
+    started = time.monotonic()
+    created = not out.exists()
+    out.mkdir(parents=True, exist_ok=True)
+    write_status(out, "incomplete", case)
+    others: list[OwnProcess] = []
+    try:
+        report = _solve(case, out, policy, compare, compare_constant, max_iterations, confirm_alpha_u,
+                        watchdog or WatchdogSettings(), (action_box, step_timeout_s, inlet_patch), say,
+                        started, others)
+    except KeyboardInterrupt:
+        write_status(out, "interrupted", case)
+        raise
+    except (ValueError, OpenFOAMNotFoundError) as err:  # bad input, before any result: leave nothing
+        for process in others:
+            process.stop()
+        _discard(out, created, case, str(err))
+        raise
+    except RuntimeError as err:
+        write_status(out, "failed", case, str(err))
+        raise
+    finally:
+        for process in others:
+            process.stop()
+        shutil.rmtree(out / WORK_DIR, ignore_errors=True)
+    return report
+
+
+def _discard(out: Path, created: bool, case: Path, error: str) -> None:
+    """Remove ``out`` if this solve created it, else say in its solve.json why it holds no result."""
+    if created:
+        shutil.rmtree(out, ignore_errors=True)
+    else:
+        write_status(out, "failed", case, error)
+
+
+def _check_paths(case: str | Path, out: str | Path) -> tuple[Path, Path]:
+    case, out = Path(case).expanduser().resolve(), Path(out).expanduser().resolve()
+    if not case.is_dir():
+        raise ValueError(f"case {case} is not a directory")
+    if any(case.glob("processor[0-9]*")):
+        raise ValueError(f"case {case} is decomposed (processor* directories): parallel cases are not "
+                         f"supported yet; give the undecomposed case (reconstructPar)")
+    if out == case or case in out.parents:
+        raise ValueError(f"--out {out} must be outside the case {case} (the case is never modified)")
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise ValueError(f"--out {out} exists and is not empty; choose a new directory")
+    return case, out
+
+
+def _solve(case: Path, out: Path, policy: Any, compare: bool, constant: Sequence[float] | None,
+           max_iterations: int | None, confirm: float | None, watchdog: WatchdogSettings,
+           env: tuple[Any, float, str], say: Callable[[str], None], started: float,
+           others: list[OwnProcess]) -> SolveReport:
+    phases: dict[str, float] = {}
+    mark = time.monotonic()
+    policy = as_controller(policy)
+    loading = None if isinstance(policy, Controller) else BackgroundLoad(policy)
+    trained = policy.policy.env_params if isinstance(policy, Controller) else policy_env_config(policy)
+    settings = read_case_settings(case)
+    budget = max_iterations or settings.budget or DEFAULT_MAX_ITERATIONS
+    cfg = solve_config(case, trained, out / WORK_DIR, budget, confirm, *env)
+    phases["case_check_s"], mark = time.monotonic() - mark, time.monotonic()
+    parallel = len(os.sched_getaffinity(0)) >= 2  # else the runs would share one core: one after the other
+    comparisons = _start_comparisons(case, out, compare, constant, settings.flat, others) if parallel else {}
+    say(f"solve {case}: criterion {dict(cfg.convergence)}, box {cfg.action_low}-{cfg.action_high}, "
+        f"budget {budget} iterations")
+    controller = policy if loading is None else loading
+    run = _controlled(cfg, trained, settings, controller, watchdog, say)
+    controller = controller if loading is None else loading.result()
+    phases["controlled_run_s"], mark = time.monotonic() - mark, time.monotonic()
+    rescue = None
+    if run.outcome == "not run" or run.outcome in FAILURES:  # a run that reached the budget keeps its fields
+        rescue = _own_rescue(case, out, comparisons, run, say)
+    episode = out / WORK_DIR / "env_0" / "episode"
+    time_name = export_case(Path(rescue.case) if rescue is not None else episode, case, out)
+    phases["fallback_and_export_s"] = time.monotonic() - mark
+    wall = time.monotonic() - started
+    if not parallel:
+        comparisons = _start_comparisons(case, out, compare, constant, settings.flat, others)
+    results = {name: process.result(24 * 3600.0) for name, process in comparisons.items()}
+    report = build_report(case, out, controller, cfg, run, rescue, time_name, wall, results, episode)
+    report.data["result"]["phases"] = phases
+    report.data["compare_parallel"] = parallel
+    write_report(out, report)
+    return report
+
+
+def _controlled(cfg: Any, trained: Any, settings: Any, controller: Any, watchdog: WatchdogSettings,
+                say: Callable[[str], None]) -> ControlledRun:
+    """The controlled run, or none (outcome "not run") when the controller does not apply to the case.
+    ``controller``: a Controller, or its BackgroundLoad (waited for once the worker has built the case)."""
+    skip = not_applicable(trained, settings)
+    if skip is not None:
+        say(skip)
+        return ControlledRun(outcome="not run", events=[{"kind": "not applicable", "at_iteration": 0,
+                                                         "reason": skip, "then": "the case's own run"}])
+    def policy() -> Any:
+        return (controller if isinstance(controller, Controller) else controller.result()).policy
+
+    fallback = own_action(settings, cfg, len(cfg.action_low))
+    return drive(cfg, policy, fallback, lambda speed: observation_factor(trained, speed), watchdog, say)
+
+def _start_comparisons(case: Path, out: Path, compare: bool, constant: Sequence[float] | None, flat: bool,
+                       others: list[OwnProcess]) -> dict[str, OwnProcess]:
+    """The comparison runs (the case's own controlDict, budget included), started now: they run beside
+    the controlled one, and the report gives the cores the runs shared."""
+    wanted: dict[str, Sequence[float] | None] = {}
+    if compare:
+        wanted["own"] = None
+    if constant is not None:
+        wanted["constant"] = constant
+    started = {}
+    for name, factors in wanted.items():
+        dest = out / COMPARE_DIR / name
+        dest.parent.mkdir(parents=True, exist_ok=True)
+        started[name] = OwnProcess(case, dest, name, 24 * 3600.0, factors, flat)
+        others.append(started[name])
+    return started
+
+
+def _own_rescue(case: Path, out: Path, comparisons: dict[str, OwnProcess], run: Any,
+                say: Callable[[str], None]) -> OwnRun:
+    """The case run with its own settings from its initial fields (the comparison's run if there is one)."""
+    if run.outcome != "not run":
+        say(f"the controlled run ended {run.outcome} at {run.iterations}: running the case's own settings")
+    if "own" in comparisons:
+        result = comparisons["own"].result(24 * 3600.0)
+    else:
+        process = OwnProcess(case, out / WORK_DIR / "own", "own", 24 * 3600.0, None, False)
+        try:
+            result = process.result(24 * 3600.0)
+        finally:
+            process.stop()
+    if run.outcome != "not run":
+        run.events.append({"kind": "rerun", "at_iteration": run.iterations,
+                           "reason": f"the controlled run ended {run.outcome}: {run.cause}".rstrip(": "),
+                           "then": "the case with its own settings from its initial fields"})
+    return result
+

@@ -1,0 +1,152 @@
+"""What ``solve`` runs a user's case with: the env config and the case's own factors and budget.
+
+The MDP is the policy's (step interval, observation layout, what the actions mean), everything about
+the case is the case's (its residualControl as the criterion, the action box its algorithm tolerates,
+its turbulence relaxation, its inlet, its own iteration budget), and convergence is confirmed at a
+fixed relaxation (foam_bridge.confirm) so that no unconverged field is reported as converged.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import tempfile
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from foam_bridge.config import FoamEnvConfig
+
+#: FoamEnvConfig fields that define the policy's MDP (observation, action meaning); copied when present.
+POLICY_FIELDS = ("interval", "residual_features", "state_scale", "observe_progress", "observe_action",
+                 "scale_free_state")
+#: The policy's turbulence setting that is part of its action (helper config: a third action).
+TURBULENCE_ACTION = "action"
+#: The iteration budget when the case's controlDict gives none (endTime / deltaT).
+DEFAULT_MAX_ITERATIONS = 4000
+
+
+@dataclass(frozen=True)
+class CaseSettings:
+    """The case's own (alpha_u, alpha_p, turbulence) factors (None where it sets none), whether its
+    relaxationFactors are flat, its iteration budget (controlDict endTime / deltaT) and its algorithm
+    ("SIMPLE", or "SIMPLEC" for ``consistent yes``)."""
+
+    factors: tuple[float | None, float | None, float | None]
+    flat: bool
+    budget: int | None
+    variant: str = "SIMPLE"
+
+
+def read_case_settings(case: Path) -> CaseSettings:
+    """Read the case's relaxation factors and budget as OpenFOAM expands them (on a scratch copy)."""
+    from foam_bridge import foamdict
+    from foam_bridge.case import copy_case
+    from foam_bridge.openfoam import find_openfoam
+
+    openfoam = find_openfoam()
+    with tempfile.TemporaryDirectory(prefix="jaxsimrl_solve_read_") as scratch:
+        copy = Path(scratch) / "case"
+        copy_case(case, copy, mesh=False)
+        solution = foamdict.expand(openfoam, copy, "system/fvSolution")
+        control = foamdict.expand(openfoam, copy, "system/controlDict")
+    relaxation = solution.get("relaxationFactors", {})
+    relaxation = relaxation if isinstance(relaxation, dict) else {}
+    flat = bool(relaxation) and "fields" not in relaxation and "equations" not in relaxation
+    equations = relaxation if flat else relaxation.get("equations", {}) or {}
+    fields = relaxation if flat else relaxation.get("fields", {}) or {}
+    factors = (_factor(equations, "U"), _factor(fields, "p"), _turbulence_factor(equations))
+    simple = solution.get("SIMPLE", {})
+    consistent = _is_true(simple.get("consistent", False)) if isinstance(simple, dict) else False
+    return CaseSettings(factors, flat, _budget(control), "SIMPLEC" if consistent else "SIMPLE")
+
+
+def _is_true(value: Any) -> bool:
+    """An OpenFOAM switch (``yes``/``on``/``true``, as foamlib parses it or as text)."""
+    return value is True or (isinstance(value, str) and value.lower() in ("yes", "on", "true", "y", "t"))
+
+
+def not_applicable(policy_cfg: FoamEnvConfig, settings: CaseSettings) -> str | None:
+    """Why the controller does not apply to the case (None if it does): its factors were learned for one
+    pressure-velocity algorithm and mean something else under the other (SIMPLEC tolerates alpha_p ~0.9,
+    plain SIMPLE needs ~0.3: foam_bridge.user_case), so a controller trained on SIMPLEC is not used on a
+    plain SIMPLE case, nor the reverse."""
+    trained = policy_cfg.variant if policy_cfg.case_dir is None else policy_cfg.simple_variant
+    if trained is not None and trained != settings.variant:
+        return (f"the controller was trained on {trained} and the case uses {settings.variant}: its factors "
+                f"do not transfer, so the case runs with its own settings")
+    return None
+
+
+def _factor(tree: Any, name: str) -> float | None:
+    from foam_bridge import foamdict
+
+    try:
+        value = foamdict.lookup(tree, name) if isinstance(tree, dict) else None
+        value = value[-1] if isinstance(value, list | tuple) else value
+        return float(value) if value is not None else None
+    except (KeyError, TypeError, ValueError):
+        return None
+
+
+def _turbulence_factor(equations: Any) -> float | None:
+    for name in ("k", "epsilon", "omega", "nuTilda"):
+        found = _factor(equations, name)
+        if found is not None:
+            return found
+    return None
+
+
+def _budget(control: dict[str, Any]) -> int | None:
+    try:
+        end, start, delta = (float(control.get(key, default)) for key, default in
+                             (("endTime", math.nan), ("startTime", 0.0), ("deltaT", 1.0)))
+    except (TypeError, ValueError):
+        return None
+    steps = (end - start) / delta if delta > 0 else math.nan
+    return int(round(steps)) if math.isfinite(steps) and steps >= 1 else None
+
+
+def solve_config(case: Path, policy_cfg: FoamEnvConfig, work: Path, max_iterations: int,
+                 confirm_alpha_u: float | None, action_box: tuple[Sequence[float], Sequence[float]] | None,
+                 step_timeout_s: float, inlet_patch: str = "inlet") -> FoamEnvConfig:
+    """The env config of the controlled run (see the module docstring); one-line CaseError/ValueError if
+    the bridge cannot drive the case."""
+    from jaxsimrl.envs.foam_config import user_case_config
+
+    copied = {name: getattr(policy_cfg, name) for name in POLICY_FIELDS if hasattr(policy_cfg, name)}
+    if getattr(policy_cfg, "relax_k_omega", None) == TURBULENCE_ACTION:
+        copied["relax_k_omega"] = TURBULENCE_ACTION
+    interval = min(copied.get("interval", 100), max_iterations)
+    cfg = FoamEnvConfig(**{**copied, "interval": interval}, case_dir=case, max_iterations=max_iterations,
+                        confirm_alpha_u=confirm_alpha_u, work_dir=work, keep_cases=True,
+                        step_timeout_s=step_timeout_s, inlet_patch=inlet_patch)
+    explicit: list[str] = []
+    if action_box is not None:
+        cfg = dataclasses.replace(cfg, action_low=tuple(action_box[0]), action_high=tuple(action_box[1]))
+        explicit = ["action_low", "action_high"]
+    return user_case_config(cfg, explicit)
+
+
+def own_action(settings: CaseSettings, cfg: FoamEnvConfig, size: int) -> list[float]:
+    """The case's own factors as an action of ``size`` entries, in the env's box (a factor the case does not
+    set means no relaxation: 1, clipped to the box's top)."""
+    own = [1.0 if value is None else value for value in settings.factors][:size]
+    low, high = list(cfg.action_low), list(cfg.action_high)
+    return [min(max(value, lo), hi) for value, lo, hi in zip(own, low, high, strict=False)]
+
+
+def observation_factor(policy_cfg: FoamEnvConfig, inlet_speed: float) -> float:
+    """What the observed state is multiplied by so that the case's inlet speed reads as the middle of the
+    policy's training range (1 when the policy's state is scale-free or either speed is unknown)."""
+    if getattr(policy_cfg, "scale_free_state", False) or not (math.isfinite(inlet_speed) and inlet_speed > 0):
+        return 1.0
+    try:
+        trained = policy_cfg.velocity_range
+    except ValueError:
+        return 1.0
+    if trained is None:
+        return 1.0
+    middle = 0.5 * (trained[0] + trained[1])
+    return (middle / inlet_speed) ** 2

@@ -1,0 +1,248 @@
+"""``jaxsimrl solve``: a user's case converged by a controller, handed back as a normal OpenFOAM case.
+
+Real simpleFoam on small cases: OpenFOAM's pitzDaily tutorial (its own mesh and settings) and the
+built-in step template copied as a user's case at mesh_scale 0.4. Every wait is bounded.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+from foam_marks import OPENFOAM
+from foamlib import FoamFile
+
+from foam_bridge import case as foam_case
+from foam_bridge.config import FoamEnvConfig
+from foam_bridge.openfoam import BRIDGE_MARK
+from jaxsimrl import load_policy
+from jaxsimrl.solve import DEFAULT_CONTROLLER, Controller, solve_case
+from jaxsimrl.solve.watchdog import Watchdog
+
+TUTORIALS = Path("/usr/share/doc/openfoam-examples/examples/incompressible/simpleFoam")
+PYTHON = sys.executable
+pytestmark = OPENFOAM
+FOAM_ENV = {**os.environ, "WM_PROJECT_DIR": os.environ.get("WM_PROJECT_DIR", "/usr/share/openfoam")}
+
+
+def _tree_hash(root: Path) -> str:
+    digest = hashlib.sha256()
+    for path in sorted(root.rglob("*")):
+        digest.update(str(path.relative_to(root)).encode())
+        if path.is_file():
+            digest.update(path.read_bytes())
+    return digest.hexdigest()
+
+
+def _coarse_step(dest: Path) -> Path:
+    """The built-in step as a user's case: mesh_scale 0.4, SIMPLEC, own factors, the training criterion."""
+    shutil.copytree(foam_case.TEMPLATE_DIR, dest)
+    with FoamFile(dest / "system" / "meshParameters") as params:
+        params.update(foam_case.mesh_parameters(0.4, 0.0127))
+    solution = dest / "system" / "fvSolution"
+    text = solution.read_text().replace("p               1e-4;", "p               5e-2;")
+    text = text.replace("U               1e-6;", "U               1e-3;").replace(" 1e-5;", " 1e-3;")
+    solution.write_text(text + '\nrelaxationFactors { fields { p 0.8; } equations { U 0.9; ".*" 0.8; } }\n')
+    return dest
+
+
+def _pitz_daily(tmp_path: Path) -> Path:
+    if not (TUTORIALS / "pitzDaily").is_dir():
+        pytest.skip("openfoam-examples not installed")
+    return Path(shutil.copytree(TUTORIALS / "pitzDaily", tmp_path / "pitzDaily"))
+
+
+def _marked_processes(under: Path) -> list[int]:
+    """Live processes carrying the bridge's mark for a case under ``under``."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            environ = (entry / "environ").read_bytes().split(b"\0")
+            state = (entry / "stat").read_text().split()[2]
+        except OSError:
+            continue
+        prefix = BRIDGE_MARK.encode() + b"="
+        mark = next((item[len(prefix):] for item in environ if item.startswith(prefix)), None)
+        if mark is not None and state != "Z" and str(under) in mark.decode(errors="replace"):
+            found.append(int(entry.name))
+    return found
+
+
+def _check_normal_case(out: Path, time_name: str) -> None:
+    """No bridge machinery; foamDictionary answers at once; simpleFoam restarts from the fields."""
+    assert not list(out.rglob("foamBridge")) and not list(out.rglob("relaxation.*"))
+    assert not any(path.is_fifo() or path.is_symlink() for path in out.rglob("*"))
+    entry = subprocess.run(["foamDictionary", "-entry", "relaxationFactors", "system/fvSolution"], cwd=out,
+                           env=FOAM_ENV, capture_output=True, text=True, timeout=20, check=True)
+    assert "relaxationFactors" in entry.stdout
+    restart = out.parent / "restart"
+    shutil.copytree(out, restart, ignore=shutil.ignore_patterns("compare", "solve.*"))
+    subprocess.run(["foamDictionary", "-entry", "startFrom", "-set", "latestTime", "system/controlDict"],
+                   cwd=restart, env=FOAM_ENV, capture_output=True, timeout=20, check=True)
+    log = subprocess.run(["simpleFoam"], cwd=restart, env=FOAM_ENV, capture_output=True, text=True,
+                         timeout=120)
+    assert log.returncode == 0, log.stdout[-2000:]
+    assert f"Time = {int(time_name) + 1}\n" in log.stdout  # it went on from the converged fields
+    assert "SIMPLE solution converged" in log.stdout
+
+
+def test_watchdog_fires_on_growth_and_on_stall_only() -> None:
+    healthy = Watchdog({"U": 1e-3, "p": 1e-2})
+    for level in (1e-1, 3e-2, 1e-2, 4e-3, 2e-3):
+        assert healthy.check({"U": level, "p": level}) is None
+    growing = Watchdog({"U": 1e-3})
+    assert growing.check({"U": 1e-2}) is None and growing.check({"U": 2e-1}).startswith("residuals grew")
+    stalled = Watchdog({"U": 1e-3})
+    reasons = [stalled.check({"U": 1e-2 * (1 + 0.01 * i)}) for i in range(4)]
+    assert reasons[:3] == [None] * 3 and reasons[3].startswith("residuals stalled")
+    assert stalled.check({"U": 1e-9}) is None  # it fires once
+
+
+def test_solve_pitz_daily_gives_a_normal_converged_case(tmp_path: Path) -> None:
+    case = _pitz_daily(tmp_path)
+    before = _tree_hash(case)
+    out = tmp_path / "out"
+    report = solve_case(case, out, compare=True, step_timeout_s=120)
+    assert _tree_hash(case) == before  # the user's case is never modified
+    data = json.loads((out / "solve.json").read_text())
+    assert data["status"] == "complete" and report.converged and data["result"]["converged"]
+    result = data["result"]
+    assert result["fields_from"] == "the controller" and result["time_directory"] == str(result["iterations"])
+    assert data["confirmations"][-1]["passed"]
+    assert data["controller"]["default"] and data["controller"]["recorded"]["checkpoint"] == 34
+    criterion = set(data["settings"]["criterion"])
+    assert set(data["residuals"]["controlled"]) == criterion == {"U", "p", "k", "epsilon"}
+    assert len(data["residuals"]["controlled"]["U"]) == result["iterations"]
+    assert data["steps"] and all(len(step["action"]) == 2 for step in data["steps"])
+    assert (out / "solve.png").read_bytes()[:4] == b"\x89PNG"
+    own = data["compare"]["own"]
+    assert own["converged"]
+    assert math.isclose(own["ratio_iterations"], result["iterations"] / own["iterations"])
+    assert (out / result["time_directory"] / "U").is_file() and (out / "log.simpleFoam").is_file()
+    _check_normal_case(out, result["time_directory"])
+
+
+def test_a_bad_controller_is_rescued_by_the_case_own_settings(tmp_path: Path) -> None:
+    case = _coarse_step(tmp_path / "step")
+
+    out = tmp_path / "out"  # actions the env rejects: the first step fails
+    report = solve_case(case, out, policy=Controller(_Constant(math.nan, math.nan), {}), step_timeout_s=120)
+    data = json.loads((out / "solve.json").read_text())
+    assert data["status"] == "complete" and report.converged
+    assert data["result"]["fields_from"].startswith("the case's own settings")
+    assert [event["kind"] for event in data["fallback"]] == ["rerun"]
+    assert (out / data["result"]["time_directory"] / "U").is_file()
+    assert not _marked_processes(tmp_path)
+
+
+class _Constant:
+    """A controller forced to act the same factors whatever it sees (a bad one, for the fallbacks)."""
+
+    env_params, action_dim = FoamEnvConfig(), 2
+
+    def __init__(self, *factors: float) -> None:
+        self.factors = np.asarray(factors)
+
+    def act(self, obs, state=None, deterministic=True):
+        return self.factors, state
+
+
+def test_solve_a_coarse_step_case_with_a_loaded_policy(tmp_path: Path) -> None:
+    case = _coarse_step(tmp_path / "step")
+    before = _tree_hash(case)
+    out = tmp_path / "out"
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        policy = load_policy(DEFAULT_CONTROLLER)  # the policy API's object, as a user holds it
+        report = solve_case(case, out, policy=policy, compare_constant=(0.9, 0.8), step_timeout_s=120)
+    assert not [w for w in caught if "fork" in str(w.message)]  # the solver never forks this JAX process
+    assert _tree_hash(case) == before and report.converged
+    data = json.loads((out / "solve.json").read_text())
+    assert data["result"]["fields_from"] == "the controller" and not data["fallback"]
+    assert data["controller"]["checkpoint"] == 34 and not data["controller"]["default"]
+    constant = data["compare"]["constant"]
+    assert constant["converged"] and (out / "compare" / "constant" / "log.simpleFoam").is_file()
+    assert "constant factors" in (out / "compare" / "constant" / "system" / "fvSolution").read_text()
+    assert "constant factors" not in (out / "system" / "fvSolution").read_text()
+    assert (out / "constant" / "polyMesh" / "boundary").is_file()  # meshed by the bridge, kept as a real mesh
+    _check_normal_case(out, data["result"]["time_directory"])
+
+
+def test_a_stalling_controller_hands_the_live_run_to_the_case_own_factors(tmp_path: Path) -> None:
+    case = _coarse_step(tmp_path / "step")
+    out = tmp_path / "out"
+    report = solve_case(case, out, policy=Controller(_Constant(0.2, 0.2), {}), step_timeout_s=120)
+    data = json.loads((out / "solve.json").read_text())
+    (event,) = data["fallback"]
+    assert event["kind"] == "watchdog" and "stalled" in event["reason"] and report.converged
+    after = [step for step in data["steps"] if step["from_iteration"] >= event["at_iteration"]]
+    assert after and all(step["action"] == [0.9, 0.8] for step in after)  # the case's own (U 0.9, p 0.8)
+    assert data["result"]["fields_from"].startswith("the controller, then the case's own factors")
+
+
+def test_a_plain_simple_case_runs_with_its_own_settings(tmp_path: Path) -> None:
+    case = _coarse_step(tmp_path / "step")  # the shipped controller learned SIMPLEC factors
+    solution = case / "system" / "fvSolution"
+    solution.write_text(solution.read_text().replace("consistent      yes;", "consistent      no;"))
+    control = case / "system" / "controlDict"
+    control.write_text(control.read_text().replace("endTime         2000;", "endTime         300;"))
+    out = tmp_path / "out"
+    report = solve_case(case, out, step_timeout_s=120)
+    data = json.loads((out / "solve.json").read_text())
+    assert [event["kind"] for event in data["fallback"]] == ["not applicable"]
+    assert "SIMPLEC" in data["fallback"][0]["reason"] and not data["steps"]
+    assert data["result"]["fields_from"] == "the case's own settings (the controller does not apply)"
+    assert data["result"]["iterations"] == report.iterations <= 300
+    assert (out / data["result"]["time_directory"] / "U").is_file()
+
+
+def _cli(*args: str, cwd: Path) -> subprocess.Popen:
+    return subprocess.Popen([PYTHON, "-m", "jaxsimrl", "solve", *args], cwd=cwd, env=FOAM_ENV,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def test_a_case_it_cannot_drive_is_one_line_and_exit_2(tmp_path: Path) -> None:
+    case = _coarse_step(tmp_path / "step")
+    solution = case / "system" / "fvSolution"
+    solution.write_text(solution.read_text().replace("residualControl", "noControl"))
+    process = _cli(str(case), "--out", str(tmp_path / "out"), cwd=tmp_path)
+    _, err = process.communicate(timeout=180)
+    assert process.returncode == 2 and err.count("\n") == 1 and "residualControl" in err
+    assert not (tmp_path / "out").exists()  # nothing claimed, nothing left
+    (case / "processor0").mkdir()
+    process = _cli(str(case), "--out", str(tmp_path / "out2"), cwd=tmp_path)
+    _, err = process.communicate(timeout=60)
+    assert process.returncode == 2 and err.count("\n") == 1 and "decomposed" in err
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGKILL])
+def test_interrupted_solve_leaves_no_solver_and_says_so(tmp_path: Path, sig: signal.Signals) -> None:
+    case = _pitz_daily(tmp_path)
+    out = tmp_path / "out"
+    process = _cli(str(case), "--out", str(out), "--compare", cwd=tmp_path)
+    deadline = time.monotonic() + 120
+    while len(_marked_processes(tmp_path)) < 2 and time.monotonic() < deadline and process.poll() is None:
+        time.sleep(0.2)
+    assert _marked_processes(tmp_path), "no solver started"
+    process.send_signal(sig)
+    process.communicate(timeout=60)
+    assert process.returncode == (130 if sig == signal.SIGINT else -signal.SIGKILL)
+    deadline = time.monotonic() + 30
+    while _marked_processes(tmp_path) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert not _marked_processes(tmp_path)
+    status = json.loads((out / "solve.json").read_text())["status"]
+    assert status == ("interrupted" if sig == signal.SIGINT else "incomplete")
