@@ -1,5 +1,7 @@
 """Atomic file writes: a reader sees either the old file or the complete new one, never a partial one.
 
+Internal to foam_bridge (its users import from ``foam_bridge`` itself); names here may change.
+
 The data goes to a temporary file in the destination's directory (same file system, so the final
 ``os.replace`` is an atomic rename), is flushed and fsynced, then renamed over the destination, and the
 directory is fsynced so that the rename itself survives a power cut. If anything fails on the way, the
@@ -15,6 +17,8 @@ import contextlib
 import os
 import tempfile
 from pathlib import Path
+
+__all__ = ["atomic_write_bytes", "atomic_write_text", "file_mode"]
 
 
 def file_mode() -> int:

@@ -52,6 +52,9 @@ from foam_bridge.config import (  # failure_reward: re-exported
     work_root,
 )
 from foam_bridge.env import action_spec, observation_spec
+from foam_bridge.records import EpisodeRecord
+
+__all__ = ["SEED_BOUND", "BatchedFoamEnv"]
 
 SEED_BOUND = 2**31 - 1
 
@@ -242,13 +245,12 @@ class BatchedFoamEnv:
 
     def _failure_info(self, tally: _Tally, cause: str) -> dict[str, Any]:
         """The info (with episode record) of an episode the env itself could not report."""
-        record = {
-            "outcome": "crashed", "cause": cause, "iterations": tally.iterations,
-            "return": tally.episode_return, "actions": list(tally.actions), "seed": tally.seed,
-            "inlet_velocity": tally.inlet_velocity, "step_height": tally.step_height,
-            "wall_time_s": time.monotonic() - tally.started,
-            "node": tally.node,
-        }
+        record = EpisodeRecord(
+            outcome="crashed", cause=cause, iterations=tally.iterations, seed=tally.seed,
+            inlet_velocity=tally.inlet_velocity, step_height=tally.step_height, actions=list(tally.actions),
+            episode_return=tally.episode_return, wall_time_s=time.monotonic() - tally.started,
+            residuals=dict(tally.residuals), node=tally.node,
+        ).to_json()
         return {"iterations": tally.iterations, "residuals": dict(tally.residuals), "outcome": "crashed",
                 "cause": cause, "inlet_velocity": tally.inlet_velocity, "episode": record}
 

@@ -9,7 +9,11 @@ The config is a frozen dataclass: it is hashable by identity of its values, pick
 worker processes) and validated by :meth:`FoamEnvConfig.validate`, which raises a one-line
 ``ValueError`` naming the bad field. Constructing a config does not validate it (so that
 ``dataclasses.replace`` chains stay cheap); :class:`foam_bridge.env.FoamCaseEnv` validates on
-construction.
+construction. :meth:`FoamEnvConfig.to_json` / :meth:`FoamEnvConfig.from_json` are its one JSON codec (the
+"foam" section of a train-foam run's config.json).
+
+Over 400 lines because it is one dataclass with its validation, its derived properties and its codec,
+which belong together; the reward helpers below are a few lines each.
 """
 
 from __future__ import annotations
@@ -22,6 +26,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
+from typing import Any
 
 #: The paper's reference velocity (m/s); the observation divides |U|^2 by U_REF**2.
 U_REF = 44.2
@@ -334,6 +339,61 @@ class FoamEnvConfig:
         """Length of the observation vector: the state, the residual features, the progress, the action."""
         return (1 + self.residual_features * len(self.convergence) + int(self.observe_progress)
                 + self.action_size * int(self.observe_action))
+
+    # ---- JSON (the "foam" section of a train-foam run's config.json) ----------------------------------
+    def to_json(self) -> dict[str, Any]:
+        """Every field by name as JSON-ready values (tuples as lists, ``convergence`` as a plain dict,
+        paths as strings); the inverse of :meth:`from_json`."""
+        return {item.name: _to_json(getattr(self, item.name)) for item in dataclasses.fields(self)}
+
+    @classmethod
+    def from_json(cls, data: Any) -> FoamEnvConfig:
+        """The validated config of a :meth:`to_json` dict; one-line ValueError if bad.
+
+        Fields missing from ``data`` take the defaults (a run written before a field existed still
+        loads); the JSON lists of tuple fields (and of a velocity or height range) become tuples again.
+        """
+        if not isinstance(data, Mapping):
+            raise ValueError(f"the foam config must be a JSON object, got {type(data).__name__}")
+        unknown = sorted(set(data) - {item.name for item in dataclasses.fields(cls)})
+        if unknown:
+            raise ValueError(f"unknown foam config key(s): {', '.join(unknown)}")
+        values = dict(data)
+        for name in _JSON_TUPLE_FIELDS:
+            if values.get(name) is not None:
+                values[name] = _as_tuple(name, values[name])
+        for name in ("inlet_velocity", "step_height"):  # a number, or a range as a list
+            if isinstance(values.get(name), list):
+                values[name] = _as_tuple(name, values[name])
+        if "convergence" in values:
+            if not isinstance(values["convergence"], Mapping):
+                raise ValueError(f"foam config convergence: expected {{field: threshold}}, got "
+                                 f"{values['convergence']!r}")
+            values["convergence"] = dict(values["convergence"])
+        try:
+            return cls(**values).validate()
+        except TypeError as err:  # e.g. a string where a number belongs, met inside validate()
+            raise ValueError(f"foam config: {err}") from None
+
+
+#: Fields stored as JSON lists that FoamEnvConfig holds as tuples.
+_JSON_TUPLE_FIELDS = ("action_low", "action_high", "turbulence_fields", "inlet_turbulence")
+
+
+def _to_json(value: Any) -> Any:
+    if isinstance(value, tuple | list):
+        return [_to_json(v) for v in value]
+    if isinstance(value, Mapping):
+        return {str(k): _to_json(v) for k, v in value.items()}
+    if isinstance(value, Path):
+        return str(value)
+    return value
+
+
+def _as_tuple(name: str, value: Any) -> tuple:
+    if not isinstance(value, list | tuple):
+        raise ValueError(f"foam config {name}: expected a list, got {value!r}")
+    return tuple(value)
 
 
 def without_convergence_test(cfg: FoamEnvConfig) -> FoamEnvConfig:

@@ -1,5 +1,7 @@
 """The convergence check that relaxation cannot move (``FoamEnvConfig.confirm_alpha_u``).
 
+Internal to foam_bridge (its users import from ``foam_bridge`` itself); names here may change.
+
 simpleFoam's residualControl reads each equation's initial residual normalised by the *relaxed*
 matrix. Relaxing the momentum equation with alpha_u divides its diagonal by alpha_u and adds the same
 amount times the old field to the source, so the unnormalised residual of the old field is unchanged
@@ -13,7 +15,7 @@ The check normalises at one fixed relaxation instead: one SIMPLE iteration from 
 alpha_t when it is an action), whose initial residuals are
 read from its log. The initial U residual of that iteration is computed from the fields of K before
 anything is solved, so the check measures the run's state, not a step of its own. It passes when the
-fields whose residual alpha_u normalises (:func:`checked_fields`) meet the criterion. Measured on the
+fields whose residual alpha_u normalises (:func:`_checked_fields`) meet the criterion. Measured on the
 full mesh (test criterion): runs with alpha_u near 0.95 read 0.83-0.88 x their own U residual at
 0.9; random factors that met the criterion read 1.3-6.7 x the threshold (experiments/foam/README.md).
 
@@ -30,11 +32,13 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from foam_bridge import case as foam_case
+from foam_bridge import episode_case
 from foam_bridge.config import FOLLOW_ALPHA_U, FoamEnvConfig
 from foam_bridge.logparse import LogParser, field_residual
 from foam_bridge.openfoam import OpenFOAM
 from foam_bridge.solver import run_to_end
+
+__all__ = ["CHECK_DIR", "Confirmation", "confirm", "meets"]
 
 #: Directory of the check's scratch case, next to the episode case.
 CHECK_DIR = "confirm"
@@ -42,7 +46,7 @@ CHECK_DIR = "confirm"
 
 @dataclass(frozen=True)
 class Confirmation:
-    """One check: the iteration K it tested, whether the checked fields (:func:`checked_fields`) met
+    """One check: the iteration K it tested, whether the checked fields (:func:`_checked_fields`) met
     the criterion, all residuals at the check's relaxation, the solver's residuals at K, the check's
     wall seconds, and what went wrong if the check itself could not run (then ``passed`` is False)."""
 
@@ -71,7 +75,7 @@ def meets(cfg: FoamEnvConfig, residuals: dict[str, float], fields: Sequence[str]
     return bool(solved) and all(residuals[name] <= cfg.convergence[name] for name in solved)
 
 
-def checked_fields(cfg: FoamEnvConfig) -> tuple[str, ...]:
+def _checked_fields(cfg: FoamEnvConfig) -> tuple[str, ...]:
     """The fields whose residual alpha_u normalises: the velocity, and the turbulence fields when they
     follow alpha_u. The others (p, turbulence at a fixed factor) the solver's own test has met already;
     re-reading them after a change of alpha_u measures the change, not the run (on airFoil2D, plain
@@ -89,11 +93,11 @@ def confirm(episode: Path, base: Path, cfg: FoamEnvConfig, openfoam: OpenFOAM, i
     assert cfg.confirm_alpha_u is not None
     started = time.monotonic()
     scratch = episode.parent / CHECK_DIR
-    text = foam_case.relaxation_text(cfg, cfg.confirm_alpha_u, alpha_p, flat, alpha_t, turbulence)
-    parser = LogParser(foam_case.CELLS_FUNCTION, foam_case.INLET_FUNCTION, cfg.divergence_threshold)
+    text = episode_case.relaxation_text(cfg, cfg.confirm_alpha_u, alpha_p, flat, alpha_t, turbulence)
+    parser = LogParser(episode_case.CELLS_FUNCTION, episode_case.INLET_FUNCTION, cfg.divergence_threshold)
     error = ""
     try:
-        foam_case.write_check_case(episode, base, scratch, cfg, iteration, text)
+        episode_case.write_check_case(episode, base, scratch, cfg, iteration, text)
         code, _ = run_to_end(scratch, openfoam, parser, cfg.step_timeout_s)
         if code != 0 or not parser.history:
             error = f"the check's simpleFoam exited with code {code}: {parser.error or 'no iteration ran'}"
@@ -104,6 +108,6 @@ def confirm(episode: Path, base: Path, cfg: FoamEnvConfig, openfoam: OpenFOAM, i
     first = parser.history[0] if parser.history else {}
     found = {name: field_residual(first, name) for name in cfg.convergence}
     residuals = {name: float(value) for name, value in found.items() if value is not None}
-    passed = not error and meets(cfg, residuals, checked_fields(cfg))
+    passed = not error and meets(cfg, residuals, _checked_fields(cfg))
     return Confirmation(iteration, passed, residuals, dict(solver_residuals),
                         time.monotonic() - started, error)

@@ -38,10 +38,14 @@ the same factors, tested). It pauses itself exactly between iterations K and K+1
 multiple of ``interval``: a function object touches fvSolution after iteration K, OpenFOAM v1912 re-reads
 modified files right after executing function objects (before iteration K+1 starts), and fvSolution
 #includes a FIFO from which the solver reads the relaxation factors; it blocks there until the bridge
-writes them (foam_bridge.case, foam_bridge.solver). So the action given at K governs iterations
+writes them (foam_bridge.episode_case, foam_bridge.solver). So the action given at K governs iterations
 K+1 .. K+interval, exactly as in the paper's restart-based MDP (tested: the residuals of iteration K+1
 already change with the new factors). The first action of an episode is read at solver start-up.
 The state of iteration K is printed by stock function objects before the pause, in full precision.
+
+Why one module of ~500 lines: it is one class, the episode's state machine (reset, step, the
+solver's faults, the confirmation restart, the episode record), whose methods share its state; the
+case files, the solver process and the log are in their own modules already.
 """
 
 from __future__ import annotations
@@ -54,14 +58,13 @@ import shutil
 import signal
 import time
 from collections import OrderedDict, deque
-from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
 from typing import Any, BinaryIO
 
 import numpy as np
 
-from foam_bridge import case as foam_case
+from foam_bridge import base_case, episode_case, template
 from foam_bridge.config import (
     ACTION_NAMES,
     OBSERVATION_BOUND,
@@ -73,8 +76,9 @@ from foam_bridge.config import (
 from foam_bridge.confirm import confirm, meets
 from foam_bridge.logparse import LogParser, field_residual
 from foam_bridge.openfoam import find_openfoam
+from foam_bridge.records import EpisodeRecord
 from foam_bridge.solver import DIVERGED, EXITED, HUNG, MISSED, PAUSED, FoamSolver
-from foam_bridge.spaces import BoxSpec, Step, clip_to_box
+from foam_bridge.spaces import BoxSpec, clip_to_box
 
 #: Every value of ``info["outcome"]``.
 OUTCOMES = ("running", "converged", "truncated", "crashed", "diverged", "hung")
@@ -82,14 +86,14 @@ OUTCOMES = ("running", "converged", "truncated", "crashed", "diverged", "hung")
 FAILURES = ("crashed", "diverged", "hung")
 #: Lock file held (fcntl.flock) by the FoamCaseEnv that owns an env directory.
 LOCK_FILE = ".foam_bridge.lock"
-#: Meshes of a step-height family one env keeps. A new height costs one blockMesh (foam_case.mesh_builtin):
+#: Meshes of a step-height family one env keeps. A new height costs one blockMesh (template.mesh_builtin):
 #: a reset took 0.40-0.44 s instead of 0.08-0.09 s at mesh 0.5-1.0 (measured on a busy 2-core machine),
 #: against 3 s (mesh 0.5) to 30 s (full mesh) for an episode; continuous draws never repeat a height, so
 #: the cache only spares repeats, e.g. an evaluation's fixed heights.
 BASE_CACHE = 4
 
-__all__ = ["FAILURES", "OUTCOMES", "FoamCaseEnv", "FoamEnv", "FoamEnvState", "action_spec", "failure_reward",
-           "observation_spec", "seed_from_key"]
+__all__ = ["FAILURES", "OUTCOMES", "FoamCaseEnv", "action_spec", "bounded_observation", "failure_reward",
+           "observation_spec"]
 
 
 class FoamCaseEnv:
@@ -134,14 +138,14 @@ class FoamCaseEnv:
         self.base = self.root / "base"
         self.case_dir = self.root / "episode"
         try:
-            self.case_info = foam_case.build_base_case(cfg, self.base, self.openfoam)
+            self.case_info = base_case.build_base_case(cfg, self.base, self.openfoam)
         except BaseException:
             self._release_directories()
             raise
         self._height = cfg.fixed_height if cfg.builtin else None  # the step height of self.base
-        self._bases: OrderedDict[float | None, tuple[Path, foam_case.CaseInfo]] = OrderedDict(
+        self._bases: OrderedDict[float | None, tuple[Path, episode_case.CaseInfo]] = OrderedDict(
             {self._height: (self.base, self.case_info)})
-        self._turbulence = foam_case.turbulence_fields(cfg, self.case_info)  # what alpha_t relaxes
+        self._turbulence = episode_case.turbulence_fields(cfg, self.case_info)  # what alpha_t relaxes
         self._rng = np.random.default_rng(env_id)
         self._solver: FoamSolver | None = None
         self._episode: dict[str, Any] = {}
@@ -167,14 +171,14 @@ class FoamCaseEnv:
             self._rng = np.random.default_rng(seed)
         velocity = self._episode_velocity(options or {})
         self._use_height(self._episode_height(options or {}))  # drawn after the velocity (see config)
-        foam_case.write_episode_case(self.base, self.case_dir, self.cfg, velocity, self.case_info)
-        inlet, cells = foam_case.initial_state(self.case_info, velocity)
+        episode_case.write_episode_case(self.base, self.case_dir, self.cfg, velocity, self.case_info)
+        inlet, cells = episode_case.initial_state(self.case_info, velocity)
         if velocity is None:  # the user's case keeps its inlet: report its speed (NaN if it has none)
             velocity = math.nan if self.case_info.inlet_speed is None else self.case_info.inlet_speed
         # the state limit is relative to this episode's inlet, so it is as tight at 25 m/s as at 75 m/s
         reference = max(inlet, cells, 0.0 if math.isnan(velocity) else velocity**2)
         state_limit = self.cfg.state_divergence_ratio * reference if reference > 0 else math.inf
-        self._parser = LogParser(foam_case.CELLS_FUNCTION, foam_case.INLET_FUNCTION,
+        self._parser = LogParser(episode_case.CELLS_FUNCTION, episode_case.INLET_FUNCTION,
                                  self.cfg.divergence_threshold, state_limit)
         self._iterations = self._target = 0
         self._restart_at: int | None = None  # a failed check: the solver goes on from these fields
@@ -204,7 +208,7 @@ class FoamCaseEnv:
         self._episode["actions"].append([float(a) for a in alpha])
         self._factors = alpha
         alpha_t = float(alpha[2]) if len(alpha) == 3 else None
-        text = foam_case.relaxation_text(self.cfg, alpha[0], alpha[1], self.case_info.flat_relaxation,
+        text = episode_case.relaxation_text(self.cfg, alpha[0], alpha[1], self.case_info.flat_relaxation,
                                          alpha_t, self._turbulence)
         event = self._advance(text)
         # stop before accounting: the whole output is then parsed, whatever had been read so far
@@ -274,7 +278,7 @@ class FoamCaseEnv:
             if not (math.isfinite(velocity) and velocity > 0):
                 raise ValueError(f"options['inlet_velocity']: expected a speed > 0, got {velocity!r}")
             if self.cfg.case_dir is not None and self.cfg.velocity_range is None:
-                foam_case.check_inlet_settable(self.base, self.cfg, self.openfoam)
+                base_case.check_inlet_settable(self.base, self.cfg, self.openfoam)
             return velocity
         if self.cfg.velocity_range is None:
             return None
@@ -304,7 +308,7 @@ class FoamCaseEnv:
             self._bases.move_to_end(height)
         else:
             base = self.root / f"base-{height!r}"  # only the built-in case has heights
-            foam_case.mesh_builtin(self.cfg, base, self.openfoam, height)
+            template.mesh_builtin(self.cfg, base, self.openfoam, height)
             self._bases[height] = (base, self.case_info)
             while len(self._bases) > BASE_CACHE:
                 shutil.rmtree(self._bases.popitem(last=False)[1][0], ignore_errors=True)
@@ -320,10 +324,10 @@ class FoamCaseEnv:
         deadline = time.monotonic() + self.cfg.step_timeout_s
         self._target = self._iterations + self.cfg.interval
         if self._solver is None:
-            fifo = partial(foam_case.relaxation_fifo, self.case_dir)
+            fifo = partial(episode_case.relaxation_fifo, self.case_dir)
             self._solver = FoamSolver(self.case_dir, self.openfoam, self._parser, fifo)
             if self._restart_at is not None:  # after a failed check: no start-up pause, these factors
-                foam_case.write_restart(self.case_dir, self.base, self.cfg, self._restart_at, text)
+                episode_case.write_restart(self.case_dir, self.base, self.cfg, self._restart_at, text)
                 self._restart_at = None
                 self._solver.start()
                 return self._solver.wait(self.cfg.step_timeout_s, self._target)
@@ -434,12 +438,15 @@ class FoamCaseEnv:
                 "step_height": self._episode["step_height"]}
 
     def _episode_record(self, outcome: str, cause: str, residuals: dict[str, float]) -> dict[str, Any]:
-        record = {key: value for key, value in self._episode.items() if key != "started"}
-        record.update(outcome=outcome, cause=cause, iterations=self._iterations, residuals=residuals,
-                      linear_iterations=self._parser.linear_iterations,
-                      solver_time_s=self._parser.execution_time,
-                      wall_time_s=time.monotonic() - self._episode["started"])
-        return record
+        episode = self._episode
+        return EpisodeRecord(
+            outcome=outcome, cause=cause, iterations=self._iterations, seed=episode["seed"],
+            inlet_velocity=episode["inlet_velocity"], step_height=episode["step_height"],
+            actions=episode["actions"], episode_return=episode["return"],
+            linear_iterations=self._parser.linear_iterations, solver_time_s=self._parser.execution_time,
+            wall_time_s=time.monotonic() - episode["started"], solver_idle_s=episode["solver_idle_s"],
+            residuals=residuals, env_id=episode["env_id"], confirmations=episode.get("confirmations"),
+        ).to_json()
 
     def _stop_solver(self) -> int | None:
         """Kill the solver (its output read to EOF); its exit status, None if none was running."""
@@ -449,58 +456,6 @@ class FoamCaseEnv:
         code = self._solver.kill()
         self._solver = None
         return code
-
-
-@dataclass
-class FoamEnvState:
-    """Host-side state handle of the protocol form: the case env and where its episode stands."""
-
-    env: FoamCaseEnv
-    iterations: int = 0
-    done: bool = False
-
-
-class FoamEnv:
-    """The protocol form (jaxsimrl.envs.protocol.Environment) of one foam case, with numpy values.
-
-    ``reset(key, params)`` and ``step(key, state, action, params)``: ``key`` is an int seed or an
-    integer array (e.g. ``jax.random.key_data(key)``: it is hashed into a numpy seed); ``params`` is a
-    FoamEnvConfig; ``state`` is a host-side handle (:class:`FoamEnvState`). The underlying
-    FoamCaseEnv is created on the first reset and recreated when ``params`` change.
-    """
-
-    def __init__(self, work_dir: Path | str | None = None, env_id: int = 0) -> None:
-        self.work_dir = work_dir
-        self.env_id = env_id
-        self._env: FoamCaseEnv | None = None
-        self._params: FoamEnvConfig | None = None
-
-    def default_params(self) -> FoamEnvConfig:
-        return FoamEnvConfig()
-
-    def reset(self, key: Any, params: FoamEnvConfig) -> tuple[np.ndarray, FoamEnvState]:
-        if self._env is None or params != self._params:
-            self.close()
-            self._env = FoamCaseEnv(params, self.work_dir, self.env_id)
-            self._params = params
-        obs, _ = self._env.reset(seed=seed_from_key(key))
-        return obs, FoamEnvState(self._env)
-
-    def step(self, key: Any, state: FoamEnvState, action: Any, params: FoamEnvConfig) -> Step:
-        obs, reward, terminated, truncated, info = state.env.step(action)
-        new_state = FoamEnvState(state.env, info["iterations"], terminated or truncated)
-        return Step(obs, new_state, np.float32(reward), terminated, truncated, info)
-
-    def observation_space(self, params: FoamEnvConfig) -> BoxSpec:
-        return observation_spec(params)
-
-    def action_space(self, params: FoamEnvConfig) -> BoxSpec:
-        return action_spec(params)
-
-    def close(self) -> None:
-        if self._env is not None:
-            self._env.close()
-            self._env = None
 
 
 def _factors(action: Any, size: int = 2) -> np.ndarray:
@@ -563,10 +518,3 @@ def action_spec(cfg: FoamEnvConfig) -> BoxSpec:
     return BoxSpec(low=np.asarray(cfg.action_low, dtype=np.float32),
                    high=np.asarray(cfg.action_high, dtype=np.float32), shape=(cfg.action_size,))
 
-
-def seed_from_key(key: Any) -> int:
-    """A numpy seed from an int or an integer array (a raw JAX PRNG key, for instance)."""
-    if isinstance(key, int | np.integer):
-        return int(key)
-    words = np.asarray(key).astype(np.uint64).ravel().tolist()
-    return int(np.random.SeedSequence(words).generate_state(1)[0])

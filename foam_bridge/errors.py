@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+__all__ = ["CaseError", "ClusterError", "OpenFOAMNotFoundError", "PoolLostError", "SolverFailure"]
+
 
 class OpenFOAMNotFoundError(RuntimeError):
     """OpenFOAM's binaries (simpleFoam, blockMesh) are not on the configured PATH."""

@@ -1,6 +1,6 @@
 """Make the result of a bridge-driven run a normal OpenFOAM case again.
 
-An episode case (foam_bridge.case) holds the bridge's machinery: ``#include`` lines appended to the
+An episode case (foam_bridge.episode_case) holds the bridge's machinery: ``#include`` lines appended to the
 user's controlDict and fvSolution, FIFOs (``system/foamBridge/relaxation.<K>``) that block any reader
 (``foamDictionary -entry relaxationFactors system/fvSolution`` hangs on them), pause copies of
 fvSolution and a symlinked mesh. :func:`export_case` writes what a user expects instead: their own
@@ -17,8 +17,11 @@ import os
 import shutil
 from pathlib import Path
 
-from foam_bridge.case import STATE_FIELD, copy_case
+from foam_bridge.episode_case import STATE_FIELD
 from foam_bridge.fields import time_directories
+from foam_bridge.template import copy_case
+
+__all__ = ["LOG_NAME", "POST_PROCESSING", "export_case"]
 
 #: The solver log of the run, as written by foam_bridge.solver.
 LOG_NAME = "log.simpleFoam"

@@ -1,5 +1,7 @@
 """The solution a run ended with, and how far it is from another one.
 
+Internal to foam_bridge (its users import from ``foam_bridge`` itself); names here may change.
+
 Why it exists: simpleFoam's convergence test reads *normalised* initial residuals, and OpenFOAM
 normalises with the relaxed matrix (its diagonal grows as 1/alpha). Lowering alpha_u therefore lowers
 the reported residual at once, without the field getting any closer to the solution: on 2h at 50 m/s,
@@ -15,6 +17,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+
+__all__ = ["final_field", "relative_l2", "time_directories"]
 
 
 def time_directories(case: Path) -> list[tuple[float, Path]]:

@@ -1,11 +1,13 @@
 """Reading a user's OpenFOAM dictionaries the way OpenFOAM itself reads them (``foamDictionary -expand``).
 
+Internal to foam_bridge (its users import from ``foam_bridge`` itself); names here may change.
+
 A user's case may use anything OpenFOAM's parser understands: ``#include``/``#includeFunc``/
 ``#includeEtc``, ``$var`` substitutions, regular-expression keys, ``#codeStream``. The bridge never
 re-serialises those files (that loses or breaks what it does not understand). To *read* a value it asks
 OpenFOAM's own ``foamDictionary -expand``, which prints the file as the solver will see it (directives
 executed, variables substituted), and parses that plain text with foamlib. To *change* something, the
-bridge appends an ``#include`` of a file it writes itself (see foam_bridge.case).
+bridge appends an ``#include`` of a file it writes itself (see foam_bridge.episode_case).
 
 A file OpenFOAM cannot read is a one-line :class:`foam_bridge.errors.CaseError` naming the file and,
 where the message allows, the entry.
@@ -23,6 +25,8 @@ from foamlib import FoamFile
 
 from foam_bridge.errors import CaseError
 from foam_bridge.openfoam import OpenFOAM
+
+__all__ = ["TIMEOUT_S", "expand", "fatal_message", "lookup"]
 
 #: What OpenFOAM v1912 says when asked to compile a #codeStream/#calc as root.
 _ROOT_REFUSAL = "administrator rights"
@@ -72,7 +76,7 @@ def _strip_banner(output: str) -> str:
 def _read_error(path: Path, relative: str, output: str) -> str:
     """One line out of a FOAM FATAL message: what went wrong, in which file and entry."""
     if _ROOT_REFUSAL in output:
-        entry = code_entry(path)
+        entry = _code_entry(path)
         where = f"entry {entry!r} uses #codeStream/#calc, which" if entry else "a #codeStream/#calc"
         return (f"{path}: {where} OpenFOAM v1912 refuses to compile when run as root; run as a normal "
                 f"user or replace it with plain values")
@@ -88,7 +92,7 @@ def fatal_message(output: str) -> str:
     return "; ".join(part for part in (message, position) if part)
 
 
-def code_entry(path: Path) -> str | None:
+def _code_entry(path: Path) -> str | None:
     """The top-level keyword whose value holds the first #codeStream/#calc of the file, if any."""
     raw = _read_text(path)
     keyword = None

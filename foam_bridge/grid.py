@@ -35,6 +35,11 @@ from foam_bridge.atomic import atomic_write_bytes, atomic_write_text
 from foam_bridge.backends import BAD_INPUT_ERRORS, WORKER_DIED, Reply, Request, make_backend
 from foam_bridge.config import K_OMEGA_ACTION, FoamEnvConfig, work_root
 
+__all__ = ["GRID_COLUMNS", "GRID_COLUMNS_3D", "GRID_SEED", "LEGEND_HEIGHT_IN", "MIN_FIGURE_WIDTH_IN",
+           "TITLE_FONTSIZE", "GridCell", "best_cell", "cell_label", "check_factors",
+           "grid_config", "heatmap_figure", "plot_grid", "plot_grid_slices", "read_grid_csv", "run_grid",
+           "write_grid_csv"]
+
 GRID_COLUMNS = ("alpha_u", "alpha_p", "iterations", "outcome", "wall_time_s")
 GRID_COLUMNS_3D = ("alpha_u", "alpha_p", "alpha_t", "iterations", "outcome", "wall_time_s")
 TITLE_FONTSIZE = 10
@@ -215,7 +220,7 @@ def cell_label(cell: GridCell) -> str:
     return f"{cell.outcome}\n@{cell.iterations}"
 
 
-def fit_title(title: str, width_in: float, fontsize: float) -> str:
+def _fit_title(title: str, width_in: float, fontsize: float) -> str:
     """``title`` with each line wrapped to fit a figure ``width_in`` inches wide (whatever the grid size)."""
     # ~0.6 em per character is a safe average for DejaVu Sans; keep a margin of half an inch.
     chars = max(int((width_in - 0.5) * 72 / (0.6 * fontsize)), 10)
@@ -282,7 +287,7 @@ def heatmap_figure(cells: Sequence[GridCell], title: str = "") -> Any:
     ax.set_yticks(range(len(us)), [f"{u:g}" for u in us])
     ax.set_xlabel(r"$\alpha_p$ (pressure)")
     ax.set_ylabel(r"$\alpha_u$ (momentum)")
-    fig.suptitle(fit_title(title, fig.get_figwidth(), TITLE_FONTSIZE), fontsize=TITLE_FONTSIZE)
+    fig.suptitle(_fit_title(title, fig.get_figwidth(), TITLE_FONTSIZE), fontsize=TITLE_FONTSIZE)
     handles = [Patch(facecolor="0.6", hatch="xx", edgecolor="0.4", label="crashed / diverged / hung"),
                Patch(facecolor="0.85", hatch="//", edgecolor="0.4", label="not converged (cap)"),
                Patch(fill=False, edgecolor="blue", linewidth=3, label="best")]

@@ -31,12 +31,14 @@ from foam_bridge.batched import SEED_BOUND, BatchedFoamEnv
 from foam_bridge.config import FoamEnvConfig
 from foam_bridge.spaces import BoxSpec
 
+__all__ = ["CONFIG_FIELDS", "RelaxationControlEnv", "RelaxationControlVecEnv", "box", "_config_from_kwargs"]
+
 CONFIG_FIELDS = tuple(f.name for f in dataclasses.fields(FoamEnvConfig))
 _TUPLE_FIELDS = ("inlet_velocity", "step_height", "action_low", "action_high", "turbulence_fields",
                  "inlet_turbulence")
 
 
-def config_from_kwargs(kwargs: dict[str, Any]) -> FoamEnvConfig:
+def _config_from_kwargs(kwargs: dict[str, Any]) -> FoamEnvConfig:
     """A validated FoamEnvConfig from keyword arguments; ValueError naming an unknown or bad one."""
     unknown = sorted(set(kwargs) - set(CONFIG_FIELDS))
     if unknown:
@@ -95,7 +97,7 @@ class RelaxationControlEnv(gymnasium.Env):
         from foam_bridge.env import FoamCaseEnv
 
         _no_render(render_mode)
-        self.cfg = config_from_kwargs(config)
+        self.cfg = _config_from_kwargs(config)
         self._dir: str | None
         with _private_dir(self.cfg) as self._dir:
             self.case_env = FoamCaseEnv(self.cfg, work_dir=self._dir, env_id=0)
@@ -135,7 +137,7 @@ class RelaxationControlVecEnv(VectorEnv):
         **config: Any,
     ) -> None:
         _no_render(render_mode)
-        self.cfg = config_from_kwargs(config)
+        self.cfg = _config_from_kwargs(config)
         self._dir: str | None
         with _private_dir(self.cfg) as self._dir:
             self.batch = BatchedFoamEnv(self.cfg, num_envs, backend=backend, pool=pool,

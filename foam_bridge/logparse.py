@@ -1,5 +1,7 @@
 """Incremental parsing of simpleFoam's output: iterations, initial residuals, the state, the outcome.
 
+Internal to foam_bridge (its users import from ``foam_bridge`` itself); names here may change.
+
 The parser is fed raw chunks of the solver's stdout+stderr as they arrive (partial lines are kept
 until their newline), so parsing costs O(new output) per step, never a re-read of the whole log.
 
@@ -28,6 +30,9 @@ import math
 import re
 from dataclasses import dataclass, field
 
+__all__ = ["STATE_LIMIT", "VECTOR_COMPONENTS", "CpuClock", "LogParser", "field_residual",
+           "solved_field_names"]
+
 _TIME = re.compile(r"^Time = (\S+)\s*$")
 _SOLVE = re.compile(r"Solving for (\w+), Initial residual = (\S+), Final residual = (\S+),"
                     r"(?: No Iterations (\d+))?")
@@ -54,6 +59,18 @@ def field_residual(residuals: dict[str, float], name: str) -> float | None:
     if not parts:
         return None
     return max(parts, key=lambda v: v if math.isfinite(v) else math.inf)
+
+
+def solved_field_names(solved: tuple[str, ...]) -> list[str]:
+    """Field names of simpleFoam's solved equations: ``Ux``/``Uy``(/``Uz``) -> ``U``, in solve order."""
+    names: list[str] = []
+    for name in solved:
+        base = name[:-1]
+        components = {base + c for c in VECTOR_COMPONENTS}
+        field = base if base and name in components and len(components & set(solved)) > 1 else name
+        if field not in names:
+            names.append(field)
+    return names
 
 
 def _to_float(text: str) -> float:

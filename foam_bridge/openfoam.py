@@ -1,5 +1,7 @@
 """Locating OpenFOAM (simpleFoam, blockMesh) and the clean environment the solver runs in.
 
+Internal to foam_bridge (its users import from ``foam_bridge`` itself); names here may change.
+
 The solver never inherits the caller's shell: it gets ``PATH`` (the configured one), ``WM_PROJECT_DIR``
 (Debian's v1912 needs it, or blockMesh fails with "Could not find mandatory etc entry 'controlDict'"),
 ``HOME`` (the case directory, so that no user ``~/.OpenFOAM`` setting leaks in), ``PWD`` and ``LANG``,
@@ -15,6 +17,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from foam_bridge.errors import OpenFOAMNotFoundError
+
+__all__ = ["BRIDGE_MARK", "INSTALL_HINT", "PROJECT_DIR_CANDIDATES", "OpenFOAM", "find_openfoam"]
 
 INSTALL_HINT = (
     "install OpenFOAM v1912+ (Debian/Ubuntu: `sudo apt-get install -y openfoam`) or source your "

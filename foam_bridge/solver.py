@@ -1,8 +1,10 @@
 """The persistent, pausable simpleFoam process of one episode (+ watchdog, process-group kill).
 
+Internal to foam_bridge (its users import from ``foam_bridge`` itself); names here may change.
+
 simpleFoam pauses itself: whenever it (re-)reads ``system/fvSolution`` it opens the FIFO that
 fvSolution #includes, ``system/foamBridge/relaxation.<K>`` (one per pause boundary K, see
-foam_bridge.case), and blocks until the bridge writes the relaxation factors into it and closes it.
+foam_bridge.episode_case), and blocks until the bridge writes the relaxation factors into it and closes it.
 The bridge notices the pause at K without any race: opening FIFO K for writing with O_NONBLOCK
 succeeds only while a reader has it open, and only the solver's read after iteration K opens it. A
 solver that runs past K without opening it (a missed pause) is stopped at once and reported
@@ -43,6 +45,8 @@ from pathlib import Path
 from foam_bridge.logparse import LogParser
 from foam_bridge.openfoam import OpenFOAM
 
+__all__ = ["EOF_TIMEOUT_S", "QUIET_POLL_S", "READ_BATCH_S", "FoamSolver", "run_to_end"]
+
 #: How long the output must be quiet before the bridge checks whether the solver waits on the FIFO.
 QUIET_POLL_S = 0.002
 #: After reading output, let more accumulate for this long: simpleFoam flushes every line, and waking
@@ -56,7 +60,7 @@ _PR_SET_PDEATHSIG = 1
 _LIBC = ctypes.CDLL(None, use_errno=True)
 
 
-def die_with_parent() -> Callable[[], None]:
+def _die_with_parent() -> Callable[[], None]:
     """A ``preexec_fn`` that makes the child get SIGKILL when its parent (thread) dies.
 
     Everything is looked up before the fork: the child only calls prctl and getppid. If the parent
@@ -110,7 +114,7 @@ class FoamSolver:
         self.process = subprocess.Popen(
             [self.openfoam.executable("simpleFoam"), "-case", str(self.case)], cwd=self.case,
             env=self.openfoam.environment(self.case), stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-            stderr=subprocess.STDOUT, start_new_session=True, preexec_fn=die_with_parent(),  # noqa: PLW1509
+            stderr=subprocess.STDOUT, start_new_session=True, preexec_fn=_die_with_parent(),  # noqa: PLW1509
         )
         self.pgid = self.process.pid
         assert self.process.stdout is not None
@@ -272,7 +276,7 @@ def _exit_status(pid: int) -> int | None:
 def run_to_end(case: Path, openfoam: OpenFOAM, parser: LogParser, timeout_s: float) -> tuple[int, float]:
     """Run simpleFoam on ``case`` once, start to end, without pauses (the reference for chunked runs).
 
-    The case must not pause (see foam_bridge.case.make_uninterrupted). The output goes to
+    The case must not pause (see foam_bridge.episode_case.make_uninterrupted). The output goes to
     ``log.simpleFoam`` and is parsed once the run has ended. Returns (exit code, wall seconds).
     """
     log = case / "log.simpleFoam"
@@ -281,7 +285,7 @@ def run_to_end(case: Path, openfoam: OpenFOAM, parser: LogParser, timeout_s: flo
         result = subprocess.run([openfoam.executable("simpleFoam"), "-case", str(case)], cwd=case,
                                 env=openfoam.environment(case), stdin=subprocess.DEVNULL, stdout=out,
                                 stderr=subprocess.STDOUT, start_new_session=True, timeout=timeout_s,
-                                preexec_fn=die_with_parent(), check=False)  # noqa: PLW1509
+                                preexec_fn=_die_with_parent(), check=False)  # noqa: PLW1509
     wall = time.monotonic() - start
     parser.feed(log.read_bytes())
     parser.finish()

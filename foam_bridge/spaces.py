@@ -1,8 +1,10 @@
-"""The two small value types foam_bridge returns: a box description and one step's result.
+"""The box description foam_bridge's envs return, and clipping an action into a box.
 
-They have the same fields as jaxsimrl's protocol types (``jaxsimrl.envs.protocol``), so code written for
-either reads both, but foam_bridge does not import jaxsimrl: the solver plugin stands on its own, and
-the trainer holds the adapter that drives it.
+Internal to foam_bridge (its users import from ``foam_bridge`` itself); names here may change.
+
+BoxSpec has the same fields as jaxsimrl's (``jaxsimrl.envs.protocol``), so code written for either reads
+both, but foam_bridge does not import jaxsimrl: the solver plugin stands on its own. Users meet it as
+``FoamCaseEnv.action_space_spec``; the gymnasium envs turn it into a ``gymnasium.spaces.Box``.
 """
 
 from __future__ import annotations
@@ -11,6 +13,8 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+__all__ = ["BoxSpec", "clip_to_box"]
+
 
 class BoxSpec(NamedTuple):
     """A bounded box of shape ``shape`` (``low``/``high`` broadcast to it)."""
@@ -18,17 +22,6 @@ class BoxSpec(NamedTuple):
     low: Any
     high: Any
     shape: tuple[int, ...]
-
-
-class Step(NamedTuple):
-    """What one environment step returns (fields are arrays, batched or not)."""
-
-    obs: Any
-    state: Any
-    reward: Any
-    terminated: Any
-    truncated: Any
-    info: dict[str, Any]
 
 
 def clip_to_box(action: Any, low: Any, high: Any) -> np.ndarray:

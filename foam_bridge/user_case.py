@@ -6,7 +6,7 @@ for whatever the user does not set explicitly (train-foam applies them to ``--ca
 
 - ``convergence``: the case's own ``SIMPLE.residualControl``, every field it lists with its own
   threshold. A regular-expression key (``"(k|epsilon|omega)" 1e-3;``) stands for the fields the case
-  actually solves (read from one SIMPLE iteration, :func:`foam_bridge.case.dry_run`), with OpenFOAM's
+  actually solves (read from one SIMPLE iteration, :func:`foam_bridge.base_case.dry_run`), with OpenFOAM's
   rule: an exact key first, else the last matching pattern. A case without one is a one-line CaseError
   (the episodes would all run to the cap).
 - ``action_low``/``action_high``: for SIMPLEC (the case's ``consistent yes`` or ``simple_variant``)
@@ -28,11 +28,15 @@ from pathlib import Path
 from typing import Any
 
 from foam_bridge import foamdict
-from foam_bridge.case import CaseInfo, check_case, check_case_files
+from foam_bridge.base_case import check_case, check_case_files
 from foam_bridge.config import FoamEnvConfig
+from foam_bridge.episode_case import CaseInfo
 from foam_bridge.errors import CaseError
-from foam_bridge.logparse import VECTOR_COMPONENTS
+from foam_bridge.logparse import solved_field_names
 from foam_bridge.openfoam import OpenFOAM, find_openfoam
+
+__all__ = ["BOX_CEILING", "BUILTIN_BOX", "CASE_DEFAULT_FIELDS", "OWN_FACTOR_SPAN", "Box", "action_box",
+           "case_defaults", "solved_field_names"]
 
 #: The built-in box (the paper's, for SIMPLEC): (action_low, action_high).
 BUILTIN_BOX = ((0.2, 0.2), (0.95, 0.95))
@@ -62,12 +66,12 @@ def case_defaults(cfg: FoamEnvConfig, openfoam: OpenFOAM | None = None,
     values: dict[str, Any] = {}
     if "convergence" in wanted:
         where = source / "system" / "fvSolution"
-        values["convergence"] = own_criterion(solution["SIMPLE"], info.solved_fields, where)
+        values["convergence"] = _own_criterion(solution["SIMPLE"], info.solved_fields, where)
     values["action_low"], values["action_high"] = action_box(solution, cfg, info)
     return {name: value for name, value in values.items() if name in wanted}
 
 
-def own_criterion(simple: dict[str, Any], solved: tuple[str, ...], where: Path) -> dict[str, float]:
+def _own_criterion(simple: dict[str, Any], solved: tuple[str, ...], where: Path) -> dict[str, float]:
     """The case's residualControl as {field: threshold}: its exact keys, then the solved fields that
     only a regular-expression key names."""
     control = simple.get("residualControl")
@@ -82,18 +86,6 @@ def own_criterion(simple: dict[str, Any], solved: tuple[str, ...], where: Path) 
             except KeyError:
                 continue  # a solved field the case does not test
     return criterion
-
-
-def solved_field_names(solved: tuple[str, ...]) -> list[str]:
-    """Field names of simpleFoam's solved equations: ``Ux``/``Uy``(/``Uz``) -> ``U``, in solve order."""
-    names: list[str] = []
-    for name in solved:
-        base = name[:-1]
-        components = {base + c for c in VECTOR_COMPONENTS}
-        field = base if base and name in components and len(components & set(solved)) > 1 else name
-        if field not in names:
-            names.append(field)
-    return names
 
 
 Box = tuple[tuple[float, float], tuple[float, float]]

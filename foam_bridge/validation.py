@@ -1,5 +1,7 @@
 """Post-processing for the CFD model validation of the backward-facing step (paper, "CFD model").
 
+Internal to foam_bridge (its users import from ``foam_bridge`` itself); names here may change.
+
 Pure helpers, no solver: the sampling dictionary handed to ``simpleFoam -postProcess -dict``, parsers of
 what OpenFOAM's ``sets`` and ``surfaces`` function objects write in ``setFormat raw`` /
 ``surfaceFormat raw``, and the wall quantities compared with Driver & Seegmiller (1985):
@@ -25,6 +27,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from foam_bridge.config import STEP_HEIGHT_H, U_REF
+
+__all__ = ["CP_REFERENCE_XH", "EXPERIMENT_REATTACHMENT_ERROR_XH", "EXPERIMENT_REATTACHMENT_XH",
+           "PLANE_FUNCTION", "PLANE_SURFACE", "PROFILES_FUNCTION", "TMR_SST_REATTACHMENT_XH", "WALL_FUNCTION",
+           "WALL_PATCH", "WallCoefficients", "plane_velocity", "pressure_coefficient", "read_raw",
+           "reattachment_length", "rising_zero_crossings", "sampling_dict", "skin_friction_coefficient",
+           "station_name", "velocity_profile", "wall_coefficients"]
 
 #: Driver & Seegmiller's measured reattachment length (x/h) and its uncertainty.
 EXPERIMENT_REATTACHMENT_XH = 6.26

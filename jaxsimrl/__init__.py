@@ -2,7 +2,9 @@
 
 Importing the package stays light (no JAX): it only registers the gymnasium id
 ``jaxsimrl/Lorenz-v0`` with a string entry point, so JAX loads when the env is first made, and
-``jaxsimrl.load_policy`` imports :mod:`jaxsimrl.introspect` on first use.
+``jaxsimrl.load_policy`` (:func:`jaxsimrl.introspect.load_policy`: a trained policy that acts and rolls
+itself out) imports JAX on first use. The layers below the CLI, bottom up: envs and runs, agents.ppo
+(PPO and the one inference function), policy (a run's trained policy), evaluation, introspect, solve.
 """
 
 from __future__ import annotations

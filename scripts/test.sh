@@ -3,5 +3,5 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
-.venv/bin/ruff check jaxsimrl foam_bridge tests benchmarks experiments
+.venv/bin/ruff check jaxsimrl foam_bridge tests benchmarks experiments docs
 .venv/bin/python -m pytest -q "$@"

@@ -19,7 +19,7 @@ TINY = ["--network", "mlp", "--num-envs", "2", "--steps-per-update", "64", "--se
         "--num-minibatches", "2", "--total-steps", "320", "--updates-per-chunk", "2"]
 TINY_FILE = {"lr": 1e-3, "gamma": 0.9, "ent_coef": 0.01}  # --config of the run below, whose --gamma wins
 # The same resolved config from flags alone: the other test modules use it, so that every tiny run in
-# one pytest process shares one trainer and compiles it once (cli.lorenz.lorenz_trainer is cached).
+# one pytest process shares one trainer and compiles it once (training.lorenz.lorenz_trainer is cached).
 TINY_FLAGS = [*TINY, "--lr", "1e-3", "--gamma", "0.95", "--ent-coef", "0.01"]
 
 

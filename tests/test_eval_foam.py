@@ -134,12 +134,13 @@ def saved_run(tmp_path_factory):
 @pytest.mark.parametrize("network", ["mlp", "lstm"])
 def test_controller_actions_depend_only_on_seed_uid_and_step(tmp_path, network):
     from jaxsimrl.evaluation.foam_controllers import LearnedController, RandomController
-    from jaxsimrl.evaluation.foam_policy import PolicyActor, load_foam_run
+    from jaxsimrl.evaluation.foam_policy import load_foam_run
+    from jaxsimrl.policy import BatchActor
 
     run = load_foam_run(save_run(tmp_path / "run", network=network))
     assert run.update == 3 and run.checkpoint_step == 3 and run.config.network == network
     obs_of = {5: [1.3], 7: [0.3]}
-    actors = {3: PolicyActor(run, 3)}  # one compilation per mode serves every controller and seed
+    actors = {3: BatchActor(run.policy, 3)}  # one compilation per mode serves every controller and seed
 
     def learned(deterministic, uids, seed=0, batch=3):
         controller = LearnedController("c", actors[batch], deterministic, seed)
@@ -152,7 +153,7 @@ def test_controller_actions_depend_only_on_seed_uid_and_step(tmp_path, network):
     pair, alone = learned(False, [5, 7]), learned(False, [7])
     np.testing.assert_array_equal(pair[0][1], alone[0][0])  # uid 7, whoever shares the batch
     np.testing.assert_array_equal(pair[1][1], alone[1][0])
-    actors[1] = PolicyActor(run, 1)  # a pool of one pads to another batch size
+    actors[1] = BatchActor(run.policy, 1)  # a pool of one pads to another batch size
     np.testing.assert_array_equal(learned(False, [7], batch=1)[0], alone[0])
     assert not np.allclose(pair[0][0], pair[0][1]) and not np.allclose(pair[0][1], pair[1][1])
     assert not np.allclose(learned(False, [7], seed=1)[0], alone[0])

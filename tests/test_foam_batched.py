@@ -24,6 +24,7 @@ from foam_bridge.config import FoamEnvConfig
 from foam_bridge.env import FoamCaseEnv
 from foam_bridge.errors import OpenFOAMNotFoundError
 from foam_bridge.openfoam import OpenFOAM
+from foam_bridge.records import EpisodeRecord
 
 # Smallest usable mesh, 300-iteration cap: an episode is at most 3 steps of 100 iterations.
 COARSE = FoamEnvConfig(mesh_scale=0.4, simple_variant="SIMPLEC", relax_k_omega=0.8, max_iterations=300,
@@ -173,6 +174,8 @@ def test_pool_of_two_runs_two_cases_with_autoreset_and_accounting(tmp_path):
             failed = record["outcome"] in ("crashed", "diverged", "hung")
             expected = -COARSE.max_iterations if failed else -record["iterations"]
             assert record["sum_of_rewards"] == expected == record["episode"]["return"]
+            # one record (foam_bridge.records), with where it ran and which env ran it
+            assert set(record["episode"]) == set(EpisodeRecord(env_id=0, node="").to_json())
             # Auto-reset: obs is the next episode's first observation (internal field at rest, so the
             # state is the inlet's |U|^2 only), not the final one.
             assert record["next_obs"][0] == pytest.approx(
@@ -203,6 +206,10 @@ def test_killed_worker_ends_only_its_episode_and_is_replaced(tmp_path):
         assert infos["final_info"]["outcome"][0] == "crashed"
         assert infos["final_info"]["cause"][0] == WORKER_DIED
         assert infos["final_info"]["episode"]["iterations"][0] == 100
+        # the batch's record of it is the env's record (its costs unknown), env_id aside
+        keys = {key for key in infos["final_info"]["episode"] if not key.startswith("_")}  # not the masks
+        assert keys == set(EpisodeRecord(node="").to_json())
+        assert infos["final_info"]["episode"]["steps"][0] == 2
         assert reward[0] == failure_reward(COARSE, 100)
         assert reward[1] == -100 and infos["iterations"][1] == 200  # the other env went on
         new_pid = env.worker_pids()[0]

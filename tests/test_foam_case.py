@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from foamlib import FoamFile
 
-from foam_bridge import case as foam_case
+from foam_bridge import base_case, episode_case, template
 from foam_bridge.config import (
     OBSERVATION_BOUND,
     STEP_HEIGHT_H,
@@ -32,18 +32,18 @@ def _points(case: Path) -> np.ndarray:
 
 
 def test_inlet_turbulence_follows_the_papers_formula() -> None:
-    k, omega = foam_case.inlet_turbulence(50.0)
+    k, omega = template.inlet_turbulence(50.0)
     assert k == pytest.approx(1.5 * (6.1e-4 * 50.0) ** 2, rel=1e-12)  # 1.3954e-3
     assert omega == pytest.approx(k / (0.009 * 1.56e-5), rel=1e-12)
-    k_ref, _ = foam_case.inlet_turbulence(44.2)
+    k_ref, _ = template.inlet_turbulence(44.2)
     assert k_ref == pytest.approx(1.09e-3, rel=1e-3)  # the tutorial's inlet k at U_ref
 
 
 def test_mesh_parameters_scale_cell_counts_and_deepen_only_the_step() -> None:
-    assert foam_case.mesh_parameters(1.0, H) == {"yFloor": 0.0, **foam_case.TUTORIAL_CELLS}
-    coarse = foam_case.mesh_parameters(0.01, H)
-    assert all(coarse[name] == 1 for name in foam_case.TUTORIAL_CELLS)  # at least one cell
-    deep = foam_case.mesh_parameters(0.5, 2 * H)
+    assert template.mesh_parameters(1.0, H) == {"yFloor": 0.0, **template.TUTORIAL_CELLS}
+    coarse = template.mesh_parameters(0.01, H)
+    assert all(coarse[name] == 1 for name in template.TUTORIAL_CELLS)  # at least one cell
+    deep = template.mesh_parameters(0.5, 2 * H)
     assert deep["yFloor"] == pytest.approx(-1.0)
     assert deep["nyStep"] == 48 and deep["nyChannel"] == 32  # step blocks keep their cell size
 
@@ -52,8 +52,8 @@ def test_mesh_parameters_scale_cell_counts_and_deepen_only_the_step() -> None:
 @needs_openfoam
 @pytest.mark.parametrize("mesh_scale, cells", [(0.25, 1264), (0.4, 3276), (1.0, 20540)])
 def test_mesh_scale_changes_the_cell_count(tmp_path: Path, mesh_scale: float, cells: int) -> None:
-    foam_case.build_base_case(FoamEnvConfig(mesh_scale=mesh_scale), tmp_path / "base", find_openfoam())
-    assert foam_case.cell_count(tmp_path / "base") == cells
+    base_case.build_base_case(FoamEnvConfig(mesh_scale=mesh_scale), tmp_path / "base", find_openfoam())
+    assert template.cell_count(tmp_path / "base") == cells
 
 
 @pytest.mark.openfoam
@@ -63,7 +63,7 @@ def test_double_step_height_moves_only_the_floor_behind_the_step(tmp_path: Path)
     meshes = {}
     for name, height in (("h", H), ("2h", 2 * H)):
         cfg = FoamEnvConfig(mesh_scale=0.25, step_height=height)
-        foam_case.build_base_case(cfg, tmp_path / name, openfoam)
+        base_case.build_base_case(cfg, tmp_path / name, openfoam)
         meshes[name] = _points(tmp_path / name)
     single, double = meshes["h"], meshes["2h"]
     assert single[:, 1].min() == pytest.approx(0.0, abs=1e-12)
@@ -83,34 +83,34 @@ def test_double_step_height_moves_only_the_floor_behind_the_step(tmp_path: Path)
 def test_episode_case_dictionaries_as_openfoam_reads_them(tmp_path: Path) -> None:
     cfg = FoamEnvConfig(mesh_scale=0.25, interval=50, max_iterations=300, convergence=dict(TEST_CONVERGENCE))
     openfoam = find_openfoam()
-    info = foam_case.build_base_case(cfg, tmp_path / "base", openfoam)
+    info = base_case.build_base_case(cfg, tmp_path / "base", openfoam)
     episode = tmp_path / "episode"
-    foam_case.write_episode_case(tmp_path / "base", episode, cfg, 50.0, info)
-    k, omega = foam_case.inlet_turbulence(50.0)
+    episode_case.write_episode_case(tmp_path / "base", episode, cfg, 50.0, info)
+    k, omega = template.inlet_turbulence(50.0)
     velocity = expand(openfoam, episode, "0/U")["boundaryField"]["inlet"]["value"]
     np.testing.assert_allclose(velocity, [50.0, 0.0, 0.0])
     for name, value in (("k", k), ("omega", omega)):
         field = expand(openfoam, episode, f"0/{name}")
         assert field["boundaryField"]["inlet"]["value"] == pytest.approx(value, rel=1e-12)
         assert field["internalField"] == pytest.approx(value, rel=1e-12)
-    assert foam_case.initial_state(info, 50.0) == pytest.approx((2500.0, 1e-16))
+    assert episode_case.initial_state(info, 50.0) == pytest.approx((2500.0, 1e-16))
 
     control = expand(openfoam, episode, "system/controlDict")
     assert (control["endTime"], control["writeFormat"], control["runTimeModifiable"]) == (300, "binary", True)
     assert control["OptimisationSwitches"]["fileModificationSkew"] == 0
     functions = control["functions"]
-    assert functions[foam_case.INLET_FUNCTION]["name"] == "inlet"
-    pauses = [entry[0] for entry in functions[foam_case.PAUSE_FUNCTION]["timeVsFile"]]
+    assert functions[episode_case.INLET_FUNCTION]["name"] == "inlet"
+    pauses = [entry[0] for entry in functions[episode_case.PAUSE_FUNCTION]["timeVsFile"]]
     assert pauses == [50, 100, 150, 200, 250]
-    assert foam_case.pause_boundaries(cfg) == [0, *pauses]
+    assert episode_case.pause_boundaries(cfg) == [0, *pauses]
 
-    for boundary in foam_case.pause_boundaries(cfg):
-        assert stat.S_ISFIFO(foam_case.relaxation_fifo(episode, boundary).stat().st_mode)
-    foam_case.make_uninterrupted(episode, cfg, 0.7, 0.3)  # FIFO 0 -> a file: readable without a solver
+    for boundary in episode_case.pause_boundaries(cfg):
+        assert stat.S_ISFIFO(episode_case.relaxation_fifo(episode, boundary).stat().st_mode)
+    episode_case.make_uninterrupted(episode, cfg, 0.7, 0.3)  # FIFO 0 -> a file: readable without a solver
     solution = expand(openfoam, episode, "system/fvSolution")
     assert solution["relaxationFactors"] == {"fields": {"p": 0.3},
                                              "equations": {"U": 0.7, "k": 0.8, "omega": 0.8}}
-    assert foam_case.PAUSE_FUNCTION not in expand(openfoam, episode, "system/controlDict")["functions"]
+    assert episode_case.PAUSE_FUNCTION not in expand(openfoam, episode, "system/controlDict")["functions"]
     assert solution["SIMPLE"]["consistent"] is True  # the built-in case's default: SIMPLEC
     assert solution["SIMPLE"]["residualControl"] == dict(TEST_CONVERGENCE)  # the template's own is gone
     assert solution["SIMPLE"]["nNonOrthogonalCorrectors"] == 0  # the rest of SIMPLE is the case's
@@ -120,16 +120,17 @@ def test_episode_case_dictionaries_as_openfoam_reads_them(tmp_path: Path) -> Non
 
 @pytest.mark.parametrize("relax_k_omega, expected", [(None, 0.8), ("alpha_u", 0.7), (0.6, 0.6)])
 def test_relaxation_text_of_the_builtin_case(relax_k_omega, expected) -> None:
-    factors = FoamFile.loads(foam_case.relaxation_text(FoamEnvConfig(relax_k_omega=relax_k_omega), 0.7, 0.3))
+    cfg = FoamEnvConfig(relax_k_omega=relax_k_omega)
+    factors = FoamFile.loads(episode_case.relaxation_text(cfg, 0.7, 0.3))
     assert factors["relaxationFactors"] == {"fields": {"p": 0.3}, "equations": {"U": 0.7, "k": expected,
                                                                                 "omega": expected}}
 
 
 def test_relaxation_text_of_a_user_case_names_only_what_the_agent_controls() -> None:
     own = FoamEnvConfig(case_dir="case")  # None: the case's own k/omega factors stay in force
-    factors = FoamFile.loads(foam_case.relaxation_text(own, 0.7, 0.3))["relaxationFactors"]
+    factors = FoamFile.loads(episode_case.relaxation_text(own, 0.7, 0.3))["relaxationFactors"]
     assert factors == {"fields": {"p": 0.3}, "equations": {"U": 0.7}}
-    flat = FoamFile.loads(foam_case.relaxation_text(own, 0.7, 0.3, flat=True))["relaxationFactors"]
+    flat = FoamFile.loads(episode_case.relaxation_text(own, 0.7, 0.3, flat=True))["relaxationFactors"]
     assert flat == {"p": 0.3, "U": 0.7}
 
 

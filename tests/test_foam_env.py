@@ -19,9 +19,9 @@ import pytest
 from foam_marks import OPENFOAM
 from foamlib import FoamFile
 
-from foam_bridge import case as foam_case
+from foam_bridge import episode_case, template
 from foam_bridge.config import TEST_CONVERGENCE, U_REF, FoamEnvConfig
-from foam_bridge.env import FoamCaseEnv, FoamEnv, action_spec, observation_spec
+from foam_bridge.env import FoamCaseEnv, action_spec, observation_spec
 from foam_bridge.errors import CaseError
 from foam_bridge.logparse import LogParser
 from foam_bridge.solver import FoamSolver, run_to_end
@@ -77,9 +77,9 @@ def test_chunked_equals_uninterrupted_and_rewards_sum_to_minus_iterations(tmp_pa
         rewards, info = _run_episode(env, BEST)
         chunked = env.parser.history
         reference_case = tmp_path / "reference"
-        foam_case.write_episode_case(env.base, reference_case, env.cfg, U_REF, env.case_info)
-        foam_case.make_uninterrupted(reference_case, env.cfg, *BEST)
-        reference = LogParser(foam_case.CELLS_FUNCTION, foam_case.INLET_FUNCTION)
+        episode_case.write_episode_case(env.base, reference_case, env.cfg, U_REF, env.case_info)
+        episode_case.make_uninterrupted(reference_case, env.cfg, *BEST)
+        reference = LogParser(episode_case.CELLS_FUNCTION, episode_case.INLET_FUNCTION)
         code, _ = run_to_end(reference_case, env.openfoam, reference, timeout_s=120)
     finally:
         env.close()
@@ -170,7 +170,7 @@ def test_solver_crash_mid_run_is_recorded_and_the_next_episode_works(tmp_path: P
         pgid = env.solver_pgid
         assert pgid is not None and _group_alive(pgid)
         # break the case under the running solver: it resumes, then its next fvSolution read fails
-        foam_case.relaxation_fifo(env.case_dir, 50).unlink()
+        episode_case.relaxation_fifo(env.case_dir, 50).unlink()
         _, reward, terminated, truncated, info = env.step(BEST)
         assert (terminated, truncated, reward) == (True, False, -2000.0)
         assert info["outcome"] == "crashed" and "FOAM FATAL" in info["cause"]
@@ -250,9 +250,9 @@ def test_close_leaves_no_process_behind(tmp_path: Path) -> None:
 
 def test_user_case_with_a_renamed_inlet_patch(tmp_path: Path) -> None:
     user_case = tmp_path / "my_case"
-    shutil.copytree(foam_case.TEMPLATE_DIR, user_case)
+    shutil.copytree(template.TEMPLATE_DIR, user_case)
     with FoamFile(user_case / "system" / "meshParameters") as params:
-        params.update(foam_case.mesh_parameters(0.4, 0.0127))
+        params.update(template.mesh_parameters(0.4, 0.0127))
     blocks = user_case / "system" / "blockMeshDict"
     blocks.write_text(blocks.read_text().replace("    inlet\n    {", "    entry\n    {"))
     for name in ("U", "p", "k", "omega", "nut"):
@@ -280,7 +280,7 @@ def test_user_case_with_a_renamed_inlet_patch(tmp_path: Path) -> None:
 
 def test_broken_user_case_is_a_one_line_value_error(tmp_path: Path) -> None:
     user_case = tmp_path / "broken"
-    shutil.copytree(foam_case.TEMPLATE_DIR, user_case)
+    shutil.copytree(template.TEMPLATE_DIR, user_case)
     (user_case / "0" / "U").unlink()
     with pytest.raises(ValueError, match=r"missing 0/U") as error:
         FoamCaseEnv(_cfg(tmp_path, case_dir=user_case))
@@ -307,17 +307,14 @@ def test_seeded_inlet_velocity_and_residual_features(tmp_path: Path) -> None:
         env.close()
 
 
-def test_protocol_form_matches_the_case_env(tmp_path: Path) -> None:
-    env = FoamEnv(work_dir=tmp_path)
-    params = _cfg(tmp_path, inlet_velocity=40.0)
-    try:
-        obs, state = env.reset(np.array([0, 3], dtype=np.uint32), params)
-        step = env.step(None, state, np.array(BEST), params)
-    finally:
-        env.close()
+def test_one_step_of_a_fixed_inlet_costs_one_interval_in_its_boxes(tmp_path: Path) -> None:
+    with FoamCaseEnv(_cfg(tmp_path, inlet_velocity=40.0)) as env:
+        obs, _ = env.reset(seed=3)
+        next_obs, reward, terminated, _, info = env.step(np.array(BEST))
+        assert env.action_space_spec.shape == (2,) and env.observation_space_spec.shape == (1,)
     assert obs[0] == pytest.approx(40.0**2 / U_REF**2)
-    assert step.reward == -25.0 and not step.terminated and step.state.iterations == 25
-    assert env.action_space(params).shape == (2,) and env.observation_space(params).shape == (1,)
+    assert next_obs.shape == (1,) and next_obs.dtype == np.float32
+    assert reward == -25.0 and not terminated and info["iterations"] == 25
 
 
 def test_an_action_on_the_float32_boxs_edge_reaches_fvsolution_as_the_exact_bound(tmp_path: Path,

@@ -12,7 +12,7 @@ import pytest
 from foam_marks import needs_openfoam
 from foamlib import FoamFile
 
-from foam_bridge import case as foam_case
+from foam_bridge import episode_case, template
 from foam_bridge.config import STEP_HEIGHT_H, FoamEnvConfig
 from foam_bridge.confirm import confirm
 from foam_bridge.env import FoamCaseEnv, observation_spec
@@ -45,9 +45,9 @@ def _episode(env: FoamCaseEnv, action) -> dict:
 def test_the_third_action_sets_the_box_and_its_text():
     cfg = FoamEnvConfig(relax_k_omega="action").validate()
     assert cfg.action_size == 3 and cfg.action_low == (0.2,) * 3 and cfg.action_high == (0.95,) * 3
-    text = FoamFile.loads(foam_case.relaxation_text(cfg, 0.9, 0.5, alpha_t=0.3))["relaxationFactors"]
+    text = FoamFile.loads(episode_case.relaxation_text(cfg, 0.9, 0.5, alpha_t=0.3))["relaxationFactors"]
     assert text["equations"] == {"U": 0.9, "k": 0.3, "omega": 0.3} and text["fields"] == {"p": 0.5}
-    own = FoamFile.loads(foam_case.relaxation_text(cfg, 0.9, 0.5))["relaxationFactors"]  # no alpha_t
+    own = FoamFile.loads(episode_case.relaxation_text(cfg, 0.9, 0.5))["relaxationFactors"]  # no alpha_t
     assert "k" not in own["equations"]
     with pytest.raises(ValueError, match="3 values each"):
         FoamEnvConfig(relax_k_omega="action", action_low=(0.2, 0.3)).validate()
@@ -124,11 +124,11 @@ def test_a_family_of_step_heights(tmp_path):
         drawn = []
         for seed in (1, 2, 3, 1):
             _, info = env.reset(seed=seed)
-            cells = foam_case.cell_count(env.base)
+            cells = template.cell_count(env.base)
             floor = FoamFile(env.base / "system" / "meshParameters")["yFloor"]
             drawn.append((info["step_height"], info["inlet_velocity"], cells, floor))
         _, info = env.reset(seed=1, options={"step_height": H2})
-        fixed = (info["step_height"], foam_case.cell_count(env.base))
+        fixed = (info["step_height"], template.cell_count(env.base))
         with pytest.raises(ValueError, match="step_height"):
             env.reset(options={"step_height": -1.0})
     heights = [d[0] for d in drawn]
@@ -139,7 +139,7 @@ def test_a_family_of_step_heights(tmp_path):
     rng = np.random.default_rng(1)  # the height is drawn after the velocity, from the same stream
     assert drawn[0][1] == rng.uniform(35.0, 65.0) and drawn[0][0] == rng.uniform(H, H2)
     with FoamCaseEnv(_cfg(tmp_path / "2h", step_height=H2)) as env:
-        assert fixed == (H2, foam_case.cell_count(env.base))
+        assert fixed == (H2, template.cell_count(env.base))
 
 
 @needs_openfoam

@@ -27,9 +27,9 @@ from foam_bridge.backends import Request, env_dir, make_backend
 from foam_bridge.backends.base import close_deadline_s
 from foam_bridge.backends.reaper import processes_under
 from foam_bridge.batched import BatchedFoamEnv
-from foam_bridge.case import CONTROL_INCLUDE, PAUSE_FUNCTION
 from foam_bridge.config import U_REF, FoamEnvConfig
 from foam_bridge.env import FoamCaseEnv
+from foam_bridge.episode_case import CONTROL_INCLUDE, PAUSE_FUNCTION
 from foam_bridge.logparse import LogParser
 from foam_bridge.openfoam import OpenFOAM
 from foam_bridge.solver import EXITED, HUNG, MISSED, PAUSED, FoamSolver

@@ -276,7 +276,7 @@ def test_train_foam_refuses_an_unreachable_address_in_one_line(capsys, tmp_path)
 
 
 def test_episodes_csv_records_the_node_and_reads_older_files_without_it(tmp_path):
-    from jaxsimrl.runs.episodes import EpisodeLog
+    from jaxsimrl.envs.foam_episodes import EpisodeLog
 
     path = tmp_path / "episodes.csv"
     log = EpisodeLog(path)
@@ -325,7 +325,7 @@ def wait_until(condition: Callable[[], bool], process: subprocess.Popen, what: s
 @needs_openfoam
 def test_train_foam_reaches_its_target_with_a_node_killed_and_resumes(tmp_path):
     from foam_bridge.backends.reaper import processes_under
-    from jaxsimrl.runs.episodes import EpisodeLog
+    from jaxsimrl.envs.foam_episodes import EpisodeLog
 
     run, tmp = tmp_path / "run", tmp_path / "tmp"
     tmp.mkdir()
@@ -398,8 +398,8 @@ def test_train_foam_killed_after_a_node_loss_resumes_losing_no_episode(tmp_path)
     from test_train_foam import _check_records
 
     from foam_bridge.backends.reaper import processes_under
+    from jaxsimrl.envs.foam_episodes import EpisodeLog
     from jaxsimrl.runs.checkpoint import Checkpoints
-    from jaxsimrl.runs.episodes import EpisodeLog
 
     run, tmp = tmp_path / "run", tmp_path / "tmp"
     tmp.mkdir()

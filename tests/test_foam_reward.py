@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from foam_marks import needs_openfoam
 
-from foam_bridge import case as foam_case
+from foam_bridge import episode_case
 from foam_bridge.config import U_REF, FoamEnvConfig, cost_per_iteration, failure_reward
 from foam_bridge.env import FoamCaseEnv
 from foam_bridge.logparse import LogParser
@@ -121,7 +121,7 @@ def _flags(tmp_path: Path, name: str, crash_at: int | None) -> Episode:
         env.reset(options={"inlet_velocity": U_REF})
         while True:
             if crash_at is not None and (len(rewards) + 1) * 25 == crash_at:
-                foam_case.relaxation_fifo(env.case_dir, crash_at).unlink()
+                episode_case.relaxation_fifo(env.case_dir, crash_at).unlink()
             _, reward, term, trunc, info = env.step(BEST)
             rewards.append(reward)
             terminated.append(term)

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from foam_marks import OPENFOAM
 
-from foam_bridge import case as foam_case
+from foam_bridge import episode_case, template
 from foam_bridge.config import FoamEnvConfig
 from foam_bridge.env import FoamCaseEnv
 from foam_bridge.errors import CaseError
@@ -56,9 +56,9 @@ def _as_openfoam_reads(env: FoamCaseEnv, relative: str, action) -> dict:
     copy = env.root / "readback"
     shutil.rmtree(copy, ignore_errors=True)
     shutil.copytree(env.case_dir, copy, symlinks=True, ignore=shutil.ignore_patterns("relaxation.*"))
-    text = foam_case.relaxation_text(env.cfg, *action, flat=env.case_info.flat_relaxation)
-    for boundary in foam_case.pause_boundaries(env.cfg):
-        foam_case.relaxation_fifo(copy, boundary).write_bytes(text)
+    text = episode_case.relaxation_text(env.cfg, *action, flat=env.case_info.flat_relaxation)
+    for boundary in episode_case.pause_boundaries(env.cfg):
+        episode_case.relaxation_fifo(copy, boundary).write_bytes(text)
     return expand(env.openfoam, copy, relative)
 
 
@@ -93,7 +93,7 @@ def _run_and_read_back(tmp_path: Path, name: str, action, outcome: str = "conver
     own_simple = {k: v for k, v in tutorial["system/fvSolution"]["SIMPLE"].items() if k != "residualControl"}
     assert solution["SIMPLE"] == {**own_simple, "residualControl": dict(env.cfg.convergence)}
     # the bridge's function objects go beside the case's own
-    ours = {foam_case.CELLS_FUNCTION, foam_case.INLET_FUNCTION, foam_case.PAUSE_FUNCTION}
+    ours = {episode_case.CELLS_FUNCTION, episode_case.INLET_FUNCTION, episode_case.PAUSE_FUNCTION}
     assert ours <= set(control["functions"])
     return tutorial["system/fvSolution"]["relaxationFactors"], solution["relaxationFactors"], control, final
 
@@ -179,7 +179,7 @@ def test_a_case_with_include_var_and_regex_keys_runs_as_written(tmp_path: Path) 
         factors = _as_openfoam_reads(env, "system/fvSolution", (0.7, 0.3))["relaxationFactors"]
         functions = expand(env.openfoam, env.case_dir, "system/controlDict")["functions"]
     assert factors == {"fields": {"p": 0.3}, "equations": {"U": 0.7, '"(nuTilda|k)"': 0.7}}
-    assert "residuals" in functions and foam_case.PAUSE_FUNCTION in functions
+    assert "residuals" in functions and episode_case.PAUSE_FUNCTION in functions
     assert {p: p.read_bytes() for p in case.rglob("*") if p.is_file()} == before  # never modified
 
 
@@ -259,7 +259,7 @@ def test_the_final_field_of_a_tutorial_reads_alike_in_ascii_binary_and_compresse
                 shutil.copytree(episode / part, copy / part, dirs_exist_ok=True)
             control = FoamFile(copy / "system" / "controlDict")
             control["writeFormat"], control["writeCompression"] = write_format, compression
-            foam_case.run_application(env.openfoam, "foamFormatConvert", copy)
+            template.run_application(env.openfoam, "foamFormatConvert", copy)
             assert sorted(f.name for f in (copy / "100").glob("U*")) == [name]
             converted[name] = final_field(copy, "U")
     assert written is not None and written[0] == 100.0 and written[1].shape == (12225, 3)

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 from foam_marks import needs_openfoam
 
-from foam_bridge.case import own_factors
+from foam_bridge.base_case import own_factors
 from foam_bridge.config import FoamEnvConfig
 from foam_bridge.env import FoamCaseEnv
 from foam_bridge.errors import CaseError
@@ -176,7 +176,7 @@ def _rows(outcome: str, iterations: list[int], cause: str = "crashed at iteratio
 
 
 def test_systematic_failure_needs_every_episode_failed_the_same_way_and_one_per_env() -> None:
-    from jaxsimrl.runs.episodes import SYSTEMATIC_MIN_EPISODES, EpisodeLog
+    from jaxsimrl.envs.foam_episodes import SYSTEMATIC_MIN_EPISODES, EpisodeLog
 
     def log(rows):
         return EpisodeLog(Path("unused.csv"), rows)
@@ -196,7 +196,7 @@ def test_a_run_whose_episodes_all_fail_the_same_way_stops_non_zero_and_resumable
     """Every episode of the built-in case 'diverges' at iteration 1 under an absurd divergence threshold:
     the run stops after its first update with the cause in one line, exit 1, and resumes (to stop again
     while the cause is there)."""
-    from jaxsimrl.runs.episodes import EpisodeLog
+    from jaxsimrl.envs.foam_episodes import EpisodeLog
 
     config = tmp_path / "config.json"
     config.write_text(json.dumps({"foam": {"divergence_threshold": 1e-9}}))
@@ -218,8 +218,8 @@ def test_a_run_whose_episodes_all_fail_the_same_way_stops_non_zero_and_resumable
 def test_the_iterations_plot_marks_failures_and_leaves_them_out_of_the_mean(tmp_path: Path) -> None:
     from matplotlib.figure import Figure
 
+    from jaxsimrl.envs.foam_episodes import EpisodeLog
     from jaxsimrl.evaluation.curves import plot_episode_iterations, read_episode_iterations
-    from jaxsimrl.runs.episodes import EpisodeLog
 
     outcomes = [("converged", 400), ("crashed", 1), ("converged", 600), ("diverged", 37), ("truncated", 800)]
     log = EpisodeLog(tmp_path / "episodes.csv")

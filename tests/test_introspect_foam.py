@@ -22,7 +22,7 @@ from jaxsimrl.introspect import (
     plot_policy_profile,
     policy_profile,
 )
-from jaxsimrl.introspect.envs import foam_obs_names
+from jaxsimrl.policy.spec import foam_obs_names
 
 RUN = Path(__file__).resolve().parents[1] / "experiments" / "notebooks" / "foam_small_run"
 STATES = np.linspace(0.0, 6.0, 13)[:, None]  # beyond both ends of what training saw (0.6 .. 2.2)
@@ -54,9 +54,10 @@ def test_a_train_foam_run_loads_and_acts_in_its_box(policy):
 
 
 def test_acting_is_eval_foams_actor(policy):
-    from jaxsimrl.evaluation.foam_policy import PolicyActor, load_foam_run
+    from jaxsimrl.evaluation.foam_policy import load_foam_run
+    from jaxsimrl.policy import BatchActor
 
-    actor = PolicyActor(load_foam_run(RUN), 13)
+    actor = BatchActor(load_foam_run(RUN).policy, 13)
     carries = [actor.initial_carry()] * 13
     theirs, _ = actor.act(STATES, carries, list(range(13)), [0] * 13, deterministic=True)
     np.testing.assert_allclose(policy.act(STATES)[0], theirs, rtol=1e-6)
@@ -65,12 +66,12 @@ def test_acting_is_eval_foams_actor(policy):
 def test_a_recurrent_foam_policy_carries_its_memory_as_eval_foams_actor_does(tmp_path):
     from test_eval_foam import save_run
 
-    from jaxsimrl.evaluation.foam_policy import PolicyActor, load_foam_run
+    from jaxsimrl.policy import BatchActor
 
     run = save_run(tmp_path / "lstm", network="lstm")
     policy = jaxsimrl.load_policy(run)
     assert policy.recurrent and policy.obs_names == ("state",)
-    actor = PolicyActor(load_foam_run(run), 1)
+    actor = BatchActor(policy, 1)
     obs, state, carries = np.array([[1.3], [0.4], [2.0]], np.float32), None, [actor.initial_carry()]
     for step, row in enumerate(obs):
         mine, state = policy.act(row, state)

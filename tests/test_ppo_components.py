@@ -67,7 +67,7 @@ def test_action_margin_makes_the_bounds_reachable_and_zero_keeps_plain_tanh():
 
 
 def test_policy_with_an_action_margin_acts_on_the_bound_and_its_distribution_has_mass_there():
-    from jaxsimrl.introspect.squashed import ActionDistribution
+    from jaxsimrl.policy import ActionDistribution
 
     config = PPOConfig(**{**TINY.to_dict(), "network": "mlp", "seq_len": 1, "num_minibatches": 2,
                           "action_margin": 0.1})

@@ -20,7 +20,7 @@ from foam_marks import needs_openfoam
 from foam_bridge.backends.reaper import processes_under
 from jaxsimrl.cli.foam_plan import foam_ppo_defaults
 from jaxsimrl.cli.main import main
-from jaxsimrl.runs.episodes import EpisodeLog
+from jaxsimrl.envs.foam_episodes import EpisodeLog
 
 # The smallest usable mesh; 4 steps per env per update, so updates come every few seconds.
 TINY = ["--mesh-scale", "0.4", "--pool", "2", "--steps-per-update", "8", "--max-iterations", "1500"]

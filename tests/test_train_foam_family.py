@@ -16,7 +16,7 @@ from foam_bridge.config import STEP_HEIGHT_H, FoamEnvConfig
 from foam_bridge.grid import read_grid_csv
 from jaxsimrl.cli.main import main
 from jaxsimrl.envs.foam_config import foam_config_from_json
-from jaxsimrl.runs.episodes import EpisodeLog
+from jaxsimrl.envs.foam_episodes import EpisodeLog
 
 REPO = Path(__file__).resolve().parents[1]
 H, H2 = STEP_HEIGHT_H, 2 * STEP_HEIGHT_H

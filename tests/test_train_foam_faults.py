@@ -21,7 +21,7 @@ from rich.console import Console
 from foam_bridge.config import FoamEnvConfig
 from jaxsimrl.cli.foam_plan import episode_steps_bound, total_steps_for
 from jaxsimrl.cli.main import main
-from jaxsimrl.runs.episodes import EpisodeLog
+from jaxsimrl.envs.foam_episodes import EpisodeLog
 
 # The cheap real runs of test_train_foam.py: the smallest usable mesh, 4 steps per env per update.
 TINY = ["--mesh-scale", "0.4", "--pool", "2", "--steps-per-update", "8", "--max-iterations", "1500"]
@@ -214,14 +214,19 @@ def test_the_bar_counts_episodes_as_they_end_and_keeps_the_count_at_80_columns(t
     log.flush()
     stream = io.StringIO()
     with FoamProgress(2000, log, 2, _Metrics(), stream=stream, live=True) as bar:
-        log.on_add = getattr(bar, "episode_ended", None)
         bar.update(0, 0.0, math.nan, 1, 1)
-        log.add(0, 2, _episode(260))  # ends during update 2, before the update's end
+        bar.episode_ended()  # the host env says: one ended during update 2, before the update's end
         rendered = io.StringIO()
         Console(file=rendered, width=80, color_system=None).print(bar._progress.get_renderable())
+        log.add(0, 2, _episode(260))  # it joins the log after the update...
+        log.flush()
+        bar.update(0, 0.0, math.nan, 2, 2)  # ...and is counted once
+        again = io.StringIO()
+        Console(file=again, width=80, color_system=None).print(bar._progress.get_renderable())
     text = rendered.getvalue()
     assert "1234/2000 episodes" in text, text
     assert all(len(row) <= 80 for row in text.splitlines())
+    assert "1234/2000 episodes" in again.getvalue(), again.getvalue()
 
 
 def test_the_progress_line_says_when_the_pool_has_lost_workers(tmp_path):

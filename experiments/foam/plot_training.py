@@ -18,8 +18,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from jaxsimrl.envs.foam_episodes import MOVING_WINDOW, EpisodeLog  # noqa: E402
 from jaxsimrl.evaluation.curves import trailing_mean  # noqa: E402
-from jaxsimrl.runs.episodes import MOVING_WINDOW, EpisodeLog  # noqa: E402
 
 
 def plot(run: Path, out: Path) -> None:

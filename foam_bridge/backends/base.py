@@ -1,5 +1,7 @@
 """What every backend shares: envs pinned to workers, batches in parallel, dead workers replaced.
 
+Internal to foam_bridge (its users import from ``foam_bridge`` itself); names here may change.
+
 A backend runs ``Request`` s (see ``worker``) on ``pool`` workers; env ``i`` always lives on worker
 ``i % pool`` (until a worker is lost, see below). ``run`` sends each worker its share of a batch at
 once, so workers compute in parallel, then gathers the replies in request order. A worker that dies
@@ -29,6 +31,9 @@ from typing import Any
 from foam_bridge.backends.worker import Reply, Request
 from foam_bridge.errors import PoolLostError
 
+__all__ = ["RESET_ALLOWANCE_S", "WORKER_DIED", "Backend", "NoRoomError",
+           "close_deadline_s", "start_deadline_s", "validate_pool"]
+
 WORKER_DIED = "worker died"
 log = logging.getLogger("foam_bridge")
 # Seconds allowed, on top of the env's own step watchdog, for case generation (blockMesh) and start-up.
@@ -49,7 +54,7 @@ def validate_pool(num_envs: int, pool: int | None = None) -> int:
     return pool
 
 
-def batch_deadline_s(cfg: Any, requests: list[Request]) -> float:
+def _batch_deadline_s(cfg: Any, requests: list[Request]) -> float:
     """Last-resort deadline for one worker's batch: the env's watchdog normally fires long before."""
     step_s = float(getattr(cfg, "step_timeout_s", 120.0))
     return sum(2 * step_s + (RESET_ALLOWANCE_S if r.method == "reset" else 30.0) for r in requests)
@@ -64,7 +69,7 @@ def start_deadline_s(cfg: Any) -> float:
 def close_deadline_s(cfg: Any, envs: int) -> float:
     """How long ``close`` waits for a worker with ``envs`` envs: long enough for a step it may still be
     running (an interrupted batch) to end by its own watchdog, and for its envs to close."""
-    return batch_deadline_s(cfg, [Request(0, "step", {})] * envs) + 30.0
+    return _batch_deadline_s(cfg, [Request(0, "step", {})] * envs) + 30.0
 
 
 class NoRoomError(RuntimeError):
@@ -113,7 +118,7 @@ class Backend(ABC):
         replies: list[Reply | None] = [None] * len(requests)
         for worker, positions in groups.items():
             batch = [requests[p] for p in positions]
-            answers = self._receive(worker, batch, sent[worker], batch_deadline_s(self.cfg, batch))
+            answers = self._receive(worker, batch, sent[worker], _batch_deadline_s(self.cfg, batch))
             if answers is None:
                 cause = self._death_cause(worker)
                 self._recover(worker, cause)

@@ -1,5 +1,7 @@
 """The local backend: a pool of worker processes on this machine (multiprocessing, "spawn" context).
 
+Internal to foam_bridge (its users import from ``foam_bridge`` itself); names here may change.
+
 "spawn" (not fork) so a parent that has already initialised JAX or threads is safe. Each worker serves
 batches of requests over a pipe until it gets ``None`` or the pipe closes (the driver died); either
 way it closes its envs, so their solvers die with it. A worker that dies is noticed through its
@@ -27,16 +29,18 @@ from foam_bridge.backends.base import Backend, close_deadline_s
 from foam_bridge.backends.reaper import kill_processes_under
 from foam_bridge.backends.worker import EnvHost, Reply, Request, env_dir
 
+__all__ = ["KILL_JOIN_S", "LocalBackend", "_preflight"]
+
 #: Reaping a SIGKILLed worker takes milliseconds; this only bounds a process stuck in the kernel.
 KILL_JOIN_S = 10.0
 
 
-def preflight(cfg: Any) -> None:
+def _preflight(cfg: Any) -> None:
     """Fail now, in one line, on what would fail every env later: no OpenFOAM, a broken user case.
 
     Only for the local backend: Ray nodes may have OpenFOAM and the case where the driver has not.
     """
-    from foam_bridge.case import check_case
+    from foam_bridge.base_case import check_case
     from foam_bridge.openfoam import find_openfoam
 
     openfoam = find_openfoam(cfg.openfoam_path)
@@ -70,7 +74,7 @@ class LocalBackend(Backend):
     def __init__(self, cfg: Any, num_envs: int, pool: int, work_dir: Path, checked: bool = False) -> None:
         super().__init__(cfg, num_envs, pool)
         if not checked:  # ``checked``: the caller has just run the same checks (jaxsimrl solve)
-            preflight(cfg)
+            _preflight(cfg)
         self.work_dir = Path(work_dir)
         self._ctx = mp.get_context("spawn")
         self._procs: list[Any] = [None] * pool

@@ -1,5 +1,7 @@
 """The Ray backend: workers are Ray actors (one CPU each), so envs can live on any node of a cluster.
 
+Internal to foam_bridge (its users import from ``foam_bridge`` itself); names here may change.
+
 Each actor hosts its envs exactly like a local worker (``worker.EnvHost``), with the case directories
 under ``work_dir`` on the actor's own node. ``ray`` is imported only when this backend is used. If Ray
 is not initialised yet, ``ray.init(address=ray_address)`` is called (``None`` starts a local instance).
@@ -18,7 +20,7 @@ within the deadline are a one-line ``ClusterError`` at start; batches wait at mo
 Security: Ray's processes listen on every interface. Ray >= 2.59 (RAY_MIN_VERSION, required) turns on
 token authentication for a local instance started by ``ray.init()``; an older Ray would let anyone who
 can reach the ports run code as this user, so it is refused. For a multi-node cluster, start every node
-with ``RAY_AUTH_MODE=token`` (see the README).
+with ``RAY_AUTH_MODE=token`` (see docs/cluster.md).
 """
 
 from __future__ import annotations
@@ -32,6 +34,9 @@ from foam_bridge.backends.base import WORKER_DIED, Backend, NoRoomError, close_d
 from foam_bridge.backends.worker import EnvHost, Reply, Request
 from foam_bridge.errors import ClusterError
 
+__all__ = ["CONNECT_TIMEOUT_S", "RAY_MIN_VERSION", "RayBackend",
+           "connect"]
+
 #: The first Ray that authenticates a local instance by default (token authentication).
 RAY_MIN_VERSION = (2, 59)
 #: Seconds a TCP connect to ``ray_address`` may take before the cluster counts as unreachable.
@@ -40,7 +45,7 @@ CONNECT_TIMEOUT_S = 5.0
 _NO_HOST = ("", "auto", "local")
 
 
-def check_ray_version(version: str) -> None:
+def _check_ray_version(version: str) -> None:
     """One-line ValueError unless ``version`` (ray.__version__) is at least RAY_MIN_VERSION."""
     parts = tuple(int(p) for p in version.split(".")[:2] if p.isdigit())
     if parts < RAY_MIN_VERSION:
@@ -49,7 +54,7 @@ def check_ray_version(version: str) -> None:
                          f"ray {version}: pip install 'ray>={wanted}'")
 
 
-def check_reachable(address: str | None, timeout_s: float = CONNECT_TIMEOUT_S) -> None:
+def _check_reachable(address: str | None, timeout_s: float = CONNECT_TIMEOUT_S) -> None:
     """One-line ClusterError unless ``address`` ("HOST:PORT" or "ray://HOST:PORT") accepts a TCP connect
     within ``timeout_s`` (``None``, "auto" and "local" are not checked: Ray resolves them itself)."""
     if address is None or address in _NO_HOST:
@@ -75,7 +80,7 @@ def connect(ray: Any, address: str | None) -> None:
     """``ray.init(address)`` unless Ray is initialised, failing in one line instead of retrying for long."""
     if ray.is_initialized():
         return
-    check_reachable(address)
+    _check_reachable(address)
     try:
         ray.init(address=address, include_dashboard=False, log_to_driver=False)
     except ConnectionError as err:
@@ -83,7 +88,7 @@ def connect(ray: Any, address: str | None) -> None:
                            f"{str(err).splitlines()[0] if str(err) else type(err).__name__}") from None
 
 
-class RayHost(EnvHost):
+class _RayHost(EnvHost):
     """EnvHost as a Ray actor: it also says where it runs."""
 
     def where(self) -> tuple[int, str, str]:
@@ -105,11 +110,11 @@ class RayBackend(Backend):
         super().__init__(cfg, num_envs, pool)
         import ray
 
-        check_ray_version(ray.__version__)
+        _check_ray_version(ray.__version__)
         connect(ray, ray_address)
         self._ray = ray
         self.work_dir = Path(work_dir)
-        self._actor_class = ray.remote(num_cpus=1, max_restarts=0)(RayHost)
+        self._actor_class = ray.remote(num_cpus=1, max_restarts=0)(_RayHost)
         self._actors: list[Any] = [None] * pool
         self._pids: list[int] = [0] * pool
         self._nodes: list[tuple[str, str]] = [("", "")] * pool  # (node id, label) per worker

@@ -1,5 +1,7 @@
 """Killing solver processes orphaned by a dead worker.
 
+Internal to foam_bridge (its users import from ``foam_bridge`` itself); names here may change.
+
 The solver runs in its own session (its own process group), so when its worker is SIGKILLed the
 solver survives, reparented to init, possibly blocked forever at a pause point. It is found by the
 mark the bridge puts in the environment of every OpenFOAM process it starts
@@ -19,6 +21,8 @@ import signal
 from pathlib import Path
 
 from foam_bridge.openfoam import BRIDGE_MARK
+
+__all__ = ["kill_processes_under", "processes_under"]
 
 _MARK = BRIDGE_MARK.encode() + b"="
 

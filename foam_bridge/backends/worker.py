@@ -1,5 +1,7 @@
 """The code that runs inside a worker (a pool process or a Ray actor): it hosts FoamCaseEnv instances.
 
+Internal to foam_bridge (its users import from ``foam_bridge`` itself); names here may change.
+
 A worker owns a fixed set of env ids. The driver sends it a batch of ``Request`` s (reset / step /
 close of one env each) and gets one ``Reply`` per request, in order. Envs are created lazily on their
 first request, in ``work_dir/env_<id>`` on the worker's own file system, so a restarted worker (after
@@ -18,6 +20,8 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 from foam_bridge.backends.reaper import kill_processes_under
+
+__all__ = ["BAD_INPUT_ERRORS", "METHODS", "EnvHost", "Reply", "Request", "env_dir"]
 
 METHODS = ("reset", "step", "close")
 #: Exceptions that mean the config or case is unusable (every env would fail alike): not retried.

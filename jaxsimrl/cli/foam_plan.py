@@ -4,7 +4,7 @@ The PPOConfig and FoamEnvConfig of a fresh run (train-foam's defaults, then ``--
 of a resumed one (its config.json, with only ``--episodes``, ``--pool``, ``--backend`` and
 ``--ray-address`` free), the episode target, the pool and the starting policy of ``--init-from``: a
 :class:`FoamPlan`. Bad input is a :class:`jaxsimrl.cli.errors.UsageError` (one line, exit 2), raised
-here before a run directory or a worker exists. The run itself is :mod:`jaxsimrl.cli.train_foam`.
+here before a run directory or a worker exists. The run itself is :mod:`jaxsimrl.training.foam`.
 """
 
 from __future__ import annotations
@@ -13,11 +13,11 @@ import argparse
 import math
 import sys
 import time
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from jaxsimrl.cli.errors import UsageError, positive_float, positive_int
+from jaxsimrl.training.foam import FoamPlan
 
 #: Env steps per update, summed over envs: ~20-30 episodes of the paper's 4-8 steps (see foam_ppo_defaults).
 FOAM_BATCH = 128
@@ -108,24 +108,7 @@ def _check_no_anneal(ppo: Any) -> None:
 
 
 
-# ---- the plan: everything resolved before anything heavy starts ---------------------------------------
-@dataclass
-class FoamPlan:
-    """A train-foam run, resolved: configs, length, workers, where it lives and what it starts from."""
-
-    ppo: Any  # PPOConfig
-    foam: Any  # FoamEnvConfig
-    episodes: int
-    seed: int
-    pool: int
-    backend: str
-    ray_address: str | None
-    run_path: Path
-    resume: bool
-    record: dict[str, Any] = field(default_factory=dict)
-    init_from: Any = None  # jaxsimrl.introspect.LoadedPolicy whose network the run starts from
-
-
+# ---- the plan: everything resolved before anything heavy starts (a jaxsimrl.training.foam.FoamPlan) ----
 def fresh_plan(args: argparse.Namespace) -> FoamPlan:
     from foam_bridge.backends import validate_pool
     from jaxsimrl.agents.ppo.config import PPOConfig
@@ -198,7 +181,7 @@ def _starting_policy(run_dir: str, ppo: Any, foam: Any, checkpoint: int | None =
     network, observation and action box."""
     import numpy as np
 
-    from jaxsimrl.introspect import load_policy
+    from jaxsimrl.policy import load_policy
 
     try:
         policy = load_policy(run_dir, checkpoint)
@@ -223,7 +206,6 @@ def _starting_policy(run_dir: str, ppo: Any, foam: Any, checkpoint: int | None =
 def _foam_config(args: argparse.Namespace, extra: dict[str, Any]) -> Any:
     """The FoamEnvConfig: the paper's built-in case, then --config's "foam" section, then flags."""
     from foam_bridge.config import MESH_SCALE_USABLE_MIN, FoamEnvConfig
-    from jaxsimrl.envs.foam_config import foam_config_from_json, foam_config_to_json
 
     if extra.get("work_dir") is not None:
         raise UsageError('--config: "foam": work_dir is not used by train-foam: every worker builds its '
@@ -231,7 +213,7 @@ def _foam_config(args: argparse.Namespace, extra: dict[str, Any]) -> Any:
     if args.mesh_scale is not None and args.mesh_scale < MESH_SCALE_USABLE_MIN:
         raise UsageError(f"--mesh-scale {args.mesh_scale:g} is below {MESH_SCALE_USABLE_MIN:g}: coarser "
                          f"meshes are a different control problem (many episodes diverge)")
-    values = {**foam_config_to_json(FoamEnvConfig()), **extra}
+    values = {**FoamEnvConfig().to_json(), **extra}
     flags = {"mesh_scale": args.mesh_scale, "step_height": _step_height(args.step_height),
              "max_iterations": args.max_iterations, "case_dir": args.case, "reward": args.reward,
              "confirm_alpha_u": args.confirm_alpha_u, "relax_k_omega": args.relax_k_omega,
@@ -243,7 +225,7 @@ def _foam_config(args: argparse.Namespace, extra: dict[str, Any]) -> Any:
     if values.get("case_dir") is not None:
         values["case_dir"] = str(Path(values["case_dir"]).resolve())
     values["work_dir"] = None  # cases live in a temporary directory per process, never in the run dir
-    cfg = foam_config_from_json(values)
+    cfg = FoamEnvConfig.from_json(values)
     return cfg if cfg.builtin else _user_case(cfg, args, extra)
 
 
@@ -276,9 +258,9 @@ def _user_case(cfg: Any, args: argparse.Namespace, extra: dict[str, Any]) -> Any
 
 def resume_plan(args: argparse.Namespace) -> FoamPlan:
     from foam_bridge.backends import validate_pool
+    from foam_bridge.config import FoamEnvConfig
     from jaxsimrl.agents.ppo.config import PPOConfig
-    from jaxsimrl.envs.foam_config import foam_config_from_json
-    from jaxsimrl.runs.episodes import EPISODES_FILE, EpisodeLog
+    from jaxsimrl.envs.foam_episodes import EPISODES_FILE, EpisodeLog
     from jaxsimrl.runs.run_dir import RunDir
 
     fixed = ["config", "num_envs", "mesh_scale", "step_height", "max_iterations", "case", "reward", "seed",
@@ -294,7 +276,7 @@ def resume_plan(args: argparse.Namespace) -> FoamPlan:
         if record.get("env") != "foam":
             raise ValueError(f"{run.path} is not a train-foam run (env {record.get('env')!r})")
         ppo = PPOConfig.from_dict(record["ppo"])
-        foam = foam_config_from_json(record["foam"])
+        foam = FoamEnvConfig.from_json(record["foam"])
         pool = validate_pool(ppo.num_envs, args.pool or record.get("pool"))
     except (KeyError, TypeError, ValueError) as err:
         raise UsageError(f"cannot resume: {err}") from None

@@ -1,26 +1,25 @@
 """``jaxsimrl train-lorenz``: PPO on the Lorenz chaos-restoration task (eval-lorenz: cli/eval_lorenz.py).
 
 train-lorenz resolves a PPOConfig (PPOConfig defaults = the paper's setup, then ``--config FILE``,
-then flags), creates a run directory (see :mod:`jaxsimrl.runs.run_dir`) and trains chunk by chunk with a
-checkpoint after each (:mod:`jaxsimrl.runs.training`). ``--resume RUN_DIR`` continues the run with its
-saved config.
+then flags) into a plan, creates a run directory (see :mod:`jaxsimrl.runs.run_dir`) and calls
+:func:`jaxsimrl.training.lorenz.train_lorenz` (chunk by chunk with a checkpoint after each), then prints.
+``--resume RUN_DIR`` continues the run with its saved config.
 JAX is imported inside the run functions so ``--help`` and flag errors stay instant.
 """
 
 from __future__ import annotations
 
 import argparse
-import functools
 import json
 import math
 import shutil
 import sys
 import time
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from jaxsimrl.cli.errors import UsageError, positive_float, positive_int, seed_list, seed_type
+from jaxsimrl.training.lorenz import Sweep, TrainPlan
 
 # PPOConfig fields with a command-line flag: (flag, type, help). Their defaults are PPOConfig's.
 KNOBS: tuple[tuple[str, Any, str], ...] = (
@@ -42,7 +41,6 @@ KNOBS: tuple[tuple[str, Any, str], ...] = (
                                         "checkpoint granularity"),
 )
 NETWORKS = ("lstm", "mlp")
-Sweep = tuple[tuple[str, tuple[float, ...]], ...]  # (field, each agent's value), hashable for the caches
 INTERRUPTED = 130
 
 
@@ -85,145 +83,34 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 # ---- train-lorenz ------------------------------------------------------------------------------------
-@dataclass
-class TrainPlan:
-    """What train-lorenz will do, resolved from the flags before anything heavy happens."""
-
-    config: Any  # PPOConfig
-    seed: int
-    run_path: Path
-    resume: bool
-    record: dict[str, Any]  # config.json of a resumed run
-    seeds: tuple[int, ...] | None = None  # each agent's seed in a batch (--seeds, --sweep); None: one agent
-    sweep: Sweep = ()  # the swept fields of a --sweep
-
-
 def run_train(args: argparse.Namespace, on_chunk: Any = None) -> int:
     """Entry point of train-lorenz; ``on_chunk(updates_done)`` is a test hook (see runs.training.train)."""
     plan = _resume_plan(args) if args.resume else _fresh_plan(args)
     if args.print_config:
         sys.stdout.write(json.dumps(plan.config.to_dict(), indent=2) + "\n")
         return 0
-    from jaxsimrl.runs.checkpoint import Checkpoints
-    from jaxsimrl.runs.progress import TrainingProgress
-    from jaxsimrl.runs.run_dir import RunDir, summarise, summarise_agents
-    from jaxsimrl.runs.tensorboard import tensorboard_log
-    from jaxsimrl.runs.training import Session, train
+    from jaxsimrl.runs.run_dir import RunDir
+    from jaxsimrl.training.common import RunInputError
+    from jaxsimrl.training.lorenz import plan_trainer, train_lorenz
 
-    seeds = plan.seeds
-    trainer = (lorenz_trainer(plan.config) if seeds is None
-               else lorenz_batch(plan.config, len(seeds), plan.sweep))
+    try:
+        trainer = plan_trainer(plan)
+    except RunInputError as err:
+        raise UsageError(str(err)) from None
     try:
         run = RunDir(plan.run_path) if plan.resume else RunDir.create(plan.run_path)
     except ValueError as err:
         raise UsageError(str(err)) from None
     try:
-        with Checkpoints(run.checkpoints) as checkpoints, tensorboard_log(run.path, args.tensorboard) as tb:
-            state, done, log = _starting_point(plan, trainer, run, checkpoints)
-            record = _config_record(plan)
-            run.write_config(record)
-            session = Session(run, trainer, log, checkpoints, meta={"config": record},
-                              summary_extra=_summary_extra(plan, run), tensorboard=tb,
-                              summarise_rows=summarise if plan.seeds is None else summarise_agents)
-            total = trainer.num_updates * plan.config.steps_per_update
-            with TrainingProgress(total, log.env_steps) as progress:
-                train(session, state, done, progress, on_chunk)
-            summary = session.write_summary()
+        summary = train_lorenz(plan, run, trainer, tensorboard=args.tensorboard, on_chunk=on_chunk)
     except KeyboardInterrupt:
         return _interrupted(run)
-    except UsageError:  # e.g. a batch too large for memory, found before its first chunk
+    except RunInputError as err:  # e.g. a batch too large for memory, found before its first chunk
         if not plan.resume:
             shutil.rmtree(run.path, ignore_errors=True)  # empty or absent when this run started
-        raise
+        raise UsageError(str(err)) from None
     _print_summary(summary, run)
     return 0
-
-
-def _summary_extra(plan: TrainPlan, run: Any) -> dict[str, Any]:
-    """What summary.json repeats from the plan: where, which seed(s), which network."""
-    return {"run_dir": str(run.path), **_agents_record(plan), "network": plan.config.network}
-
-
-def _agents_record(plan: TrainPlan) -> dict[str, Any]:
-    """Who the agents are, for config.json and summary.json: ``seed``; or each agent's ``seeds`` and, for
-    a sweep, ``sweep`` (each agent's value of every swept field)."""
-    if plan.seeds is None:
-        return {"seed": plan.seed}
-    sweep = {"sweep": {name: list(values) for name, values in plan.sweep}} if plan.sweep else {}
-    return {"seeds": list(plan.seeds), **sweep}
-
-
-@functools.lru_cache(maxsize=2)
-def lorenz_trainer(config: Any) -> Any:
-    """The PPO trainer of ``config`` on the Lorenz env. Trainers are stateless, so repeated runs in one
-    process (notebooks, tests) share one and compile its chunk once."""
-    from jaxsimrl.agents.ppo import make_train
-    from jaxsimrl.envs.lorenz import Lorenz
-
-    try:
-        return make_train(config, Lorenz())
-    except ValueError as err:
-        raise UsageError(f"invalid config: {err}") from None
-
-
-@functools.lru_cache(maxsize=2)
-def lorenz_batch(config: Any, num_agents: int, sweep: Sweep = ()) -> Any:
-    """A batch of ``num_agents`` agents of ``config`` on the Lorenz env, with each agent's values of the
-    ``sweep``ed fields (cached as :func:`lorenz_trainer`)."""
-    from jaxsimrl.agents.ppo.batch import SeedBatch
-
-    return SeedBatch(lorenz_trainer(config), num_agents, dict(sweep))
-
-
-def _starting_point(plan: TrainPlan, trainer: Any, run: Any, checkpoints: Any) -> tuple[Any, int, Any]:
-    """(state, updates done, metrics log): fresh, or restored from the run's last checkpoint. A batch's
-    chunk is compiled here, so that one too large for memory is refused before anything is written."""
-    import jax
-
-    from jaxsimrl.agents.ppo.batch import seed_keys
-    from jaxsimrl.runs.run_dir import MetricsLog
-
-    key = jax.random.PRNGKey(plan.seed) if plan.seeds is None else seed_keys(plan.seeds)
-    if not plan.resume:
-        state = trainer.init(key)
-        _check_memory(trainer, state)
-        return state, 0, MetricsLog(run)
-    try:
-        done = checkpoints.latest_step()  # a checkpoint is named by the number of updates done
-        # eval_shape gives the state's structure without computing it; orbax restores the saved shardings.
-        state, _ = checkpoints.restore(jax.eval_shape(trainer.init, key), done)
-    except ValueError as err:
-        raise UsageError(f"cannot resume: {err}") from None
-    _check_memory(trainer, state)
-    log = MetricsLog.load(run, done)  # drops rows of a chunk whose checkpoint never landed
-    log.write()
-    return state, done, log
-
-
-def _check_memory(trainer: Any, state: Any) -> None:
-    """Compile a batch's chunk and refuse it in one line if it would not fit (one agent: no check)."""
-    from jaxsimrl.agents.ppo.batch import BatchTooLarge, SeedBatch
-
-    if isinstance(trainer, SeedBatch):
-        try:
-            trainer.compile(state)
-        except BatchTooLarge as err:
-            raise UsageError(str(err)) from None
-
-
-def _config_record(plan: TrainPlan) -> dict[str, Any]:
-    """config.json: the resolved config plus what is needed to reproduce or audit the run."""
-    from importlib.metadata import version
-
-    import jax
-
-    now = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
-    base = plan.record if plan.resume else {"env": "lorenz", **_agents_record(plan), "created_utc": now}
-    record = {**base, "ppo": plan.config.to_dict(), "jax_version": jax.__version__,
-              "jaxsimrl_version": version("jaxsimrl"), "devices": [str(device) for device in jax.devices()]}
-    if plan.resume:
-        record["resumed_utc"] = [*base.get("resumed_utc", []), now]
-    return record
 
 
 def _interrupted(run: Any) -> int:

@@ -6,31 +6,21 @@ paper's (Pawar & Maulik, "Solver convergence acceleration"): a 2 x 64 tanh MLP, 
 velocity uniform in [35, 65] m/s, actions (alpha_u, alpha_p) in [0.2, 0.95]^2 every 100 iterations, the
 training criterion, 2000 episodes, the built-in backward-facing step (SIMPLEC, k/omega relaxed at 0.8).
 
-One update = ``steps_per_update`` env steps (see :func:`jaxsimrl.cli.foam_plan.foam_ppo_defaults` for
-the sizes and why); after every update: metrics rows, episodes.csv, a checkpoint, summary.json (in that
-order, Ctrl-C held back).
-``--resume RUN_DIR`` continues from the last checkpoint. Every checkpoint also records the episodes in
-flight (each env's episode seed, actions so far, K, observation and seed stream): the solvers did not
-survive the process, so resume replays them (the solver is deterministic), checks K, return and
-observation against the record, and carries on mid-episode exactly as the run would have; where that
-fails (an older checkpoint, a changed machine) every env starts a new episode instead, and says so.
-A run killed before its first checkpoint resumes by starting over from its config.json. The run's
-length is ``--episodes``: it stops after the update in which the target is reached (PPOConfig.total_steps
-is only a safety bound derived from it, see :func:`jaxsimrl.cli.foam_plan.total_steps_for`).
-``--init-from RUN_DIR`` starts a new run from another run's trained network and observation
-statistics (e.g. a coarse-mesh policy fine-tuned on the full mesh), with a fresh optimiser and new
-episodes.
+This module parses the flags, resolves them into a plan (:mod:`jaxsimrl.cli.foam_plan`, every bad input a
+one-line error before anything starts), calls :func:`jaxsimrl.training.foam.train_foam` (the run itself:
+updates, episodes.csv, checkpoints, resume with the episodes in flight replayed) and prints. ``--resume
+RUN_DIR`` continues from the last checkpoint; ``--init-from RUN_DIR`` starts a new run from another run's
+trained network and observation statistics (e.g. a coarse-mesh policy fine-tuned on the full mesh), with
+a fresh optimiser and new episodes.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import shutil
 import sys
-import time
 from collections.abc import Callable
 from typing import Any
 
@@ -38,8 +28,6 @@ from jaxsimrl.cli.errors import UsageError, positive_float, positive_int, seed_t
 from jaxsimrl.cli.foam_plan import KNOBS, OBSERVE_SWITCHES, FoamPlan, fresh_plan, resume_plan
 
 INTERRUPTED = 130
-#: Key of the episodes in flight (BatchedFoamEnv.snapshot) in each checkpoint's record.
-IN_FLIGHT = "in_flight"
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -107,21 +95,23 @@ def run_train_foam(args: argparse.Namespace, on_chunk: Any = None) -> int:
     """Entry point of train-foam; ``on_chunk(updates_done)`` is a test hook."""
     plan = resume_plan(args) if args.resume else fresh_plan(args)
     if args.print_config:
-        from jaxsimrl.envs.foam_config import foam_config_to_json
-
-        sys.stdout.write(json.dumps({"ppo": plan.ppo.to_dict(), "foam": foam_config_to_json(plan.foam),
+        sys.stdout.write(json.dumps({"ppo": plan.ppo.to_dict(), "foam": plan.foam.to_json(),
                                      "episodes": plan.episodes, "pool": plan.pool}, indent=2) + "\n")
         return 0
     from foam_bridge.errors import CaseError, ClusterError, OpenFOAMNotFoundError
     from jaxsimrl.envs.host import HostEnvError
     from jaxsimrl.runs.run_dir import RunDir
+    from jaxsimrl.training.foam import ResumeError, train_foam
 
     try:
         run = RunDir(plan.run_path) if plan.resume else RunDir.create(plan.run_path)
     except ValueError as err:
         raise UsageError(str(err)) from None
     try:
-        summary = _train(plan, run, on_chunk, args.tensorboard)
+        summary = train_foam(plan, run, tensorboard=args.tensorboard, on_chunk=on_chunk,
+                             on_interrupt=_interrupt_handler(run, plan))
+    except ResumeError as err:
+        raise UsageError(str(err)) from None
     except (CaseError, ClusterError, OpenFOAMNotFoundError) as err:
         _drop_if_empty(run, plan)
         raise UsageError(str(err)) from None
@@ -134,193 +124,6 @@ def run_train_foam(args: argparse.Namespace, on_chunk: Any = None) -> int:
         return 1
     _print_summary(summary, run)
     return 0
-
-
-def _train(plan: FoamPlan, run: Any, on_chunk: Any, tensorboard: bool = False) -> dict[str, Any]:
-    """Build the pool and the trainer, restore or start, train; returns the final summary."""
-    import jax
-
-    from jaxsimrl.agents.ppo import make_train
-    from jaxsimrl.envs.foam import foam_vec_env
-    from jaxsimrl.runs.checkpoint import Checkpoints
-    from jaxsimrl.runs.episodes import EPISODES_FILE, EpisodeLog
-    from jaxsimrl.runs.progress import FoamProgress
-    from jaxsimrl.runs.run_dir import MetricsLog
-    from jaxsimrl.runs.tensorboard import tensorboard_log
-    from jaxsimrl.runs.training import Session, train
-
-    steps = run.checkpoint_steps() if plan.resume else []
-    done = steps[-1] if steps else 0
-    # config.json first: from here on the directory is a run that --resume accepts (it starts over
-    # while there is no checkpoint)
-    record = _config_record(plan)
-    run.write_config(record)
-    episodes = EpisodeLog.load(run.path / EPISODES_FILE, done)  # rows past the checkpoint are dropped
-    if plan.resume and not done:
-        _start_over(run, episodes)
-    cursor = {"update": done + 1}
-    # the batch is re-seeded from the trainer's key at every reset; this seed only names its streams
-    vec = foam_vec_env(plan.foam, plan.ppo.num_envs, plan.pool, seed=plan.seed,
-                       backend=plan.backend, ray_address=plan.ray_address,
-                       on_episode=lambda env_id, info: episodes.add(env_id, cursor["update"], info))
-    try:
-        trainer = make_train(plan.ppo, vec=vec, devices=jax.devices()[:1])
-        with Checkpoints(run.checkpoints) as checkpoints, tensorboard_log(run.path, tensorboard) as tb:
-            key = jax.random.PRNGKey(plan.seed)
-            if done:
-                state = _restored(trainer, checkpoints, key, done, vec)
-                log = MetricsLog.load(run, done)
-                log.write()
-            else:
-                state, log = _initial_state(trainer, key, plan.init_from), MetricsLog(run)
-            vec.raise_if_failed()
-            session = Session(run, _HostTrainer(trainer, vec, episodes, cursor), log, checkpoints,
-                              meta={"config": record}, summary_extra={"run_dir": str(run.path)},
-                              before_checkpoint=lambda _: episodes.flush(),
-                              # workers_lost: workers lost for good (a Ray node died), one line each
-                              summary_hook=lambda s: {**foam_summary(s, episodes, plan),
-                                                      "workers_lost": list(vec.batch.backend.lost)},
-                              tensorboard=tb,
-                              checkpoint_meta=lambda: {IN_FLIGHT: vec.batch.snapshot()})
-            with FoamProgress(plan.episodes, episodes, plan.pool, log,
-                              workers=vec.batch.backend.workers) as progress:
-                episodes.on_add = progress.episode_ended  # the bar counts episodes as they end
-                resumed_with = len(episodes.rows)
-                train(session, state, done, progress, on_chunk,
-                      until=lambda: _target_reached(episodes, plan, resumed_with),
-                      on_interrupt=_interrupt_handler(run, plan, progress))
-            return session.write_summary()
-    finally:
-        vec.batch.close()
-
-
-def _start_over(run: Any, episodes: Any) -> None:
-    """A resumed run without a checkpoint (killed before its first one was saved) starts over from its
-    config.json: the rows it wrote for updates that no checkpoint kept are truncated, so none is
-    written twice."""
-    from jaxsimrl.runs.run_dir import MetricsLog
-    from jaxsimrl.runs.tensorboard import TENSORBOARD_DIR
-
-    sys.stderr.write(f"jaxsimrl train-foam: {run.path} has no checkpoint (it stopped before its first "
-                     f"update was saved): starting it over from its config.json\n")
-    MetricsLog(run).write()
-    episodes.flush()
-    shutil.rmtree(run.path / TENSORBOARD_DIR, ignore_errors=True)
-
-
-def _target_reached(episodes: Any, plan: FoamPlan, resumed_with: int) -> bool:
-    """True at the episode target. Checked after each update is saved: a run whose episodes all failed
-    the same way (EpisodeLog.systematic_failure) stops there with that cause, resumable once it is fixed
-    (the rule waits for an update of this session: ``resumed_with`` rows were there at its start)."""
-    from jaxsimrl.envs.host import HostEnvError
-
-    cause = episodes.systematic_failure(plan.ppo.num_envs) if len(episodes.rows) > resumed_with else None
-    if cause is not None:
-        raise HostEnvError(f"all {len(episodes.rows)} episodes so far failed the same way, {cause}; fix the "
-                           f"case or settings, then resume")
-    return len(episodes.rows) >= plan.episodes
-
-
-def _initial_state(trainer: Any, key: Any, start: Any) -> Any:
-    """A fresh state; with ``--init-from``, its network and normaliser are the starting policy's."""
-    import jax
-
-    state = trainer.init(key)
-    if start is None:
-        return state
-    placed = jax.tree.map(lambda new, old: jax.device_put(jax.numpy.asarray(old, new.dtype), new.sharding),
-                          (state.params, state.normalizer), (start.params.params, start.params.normalizer))
-    return state.replace(params=placed[0], normalizer=placed[1])
-
-
-def _restored(trainer: Any, checkpoints: Any, key: Any, done: int, vec: Any) -> Any:
-    """The state of checkpoint ``done`` with its episodes in flight replayed, else with new episodes."""
-    import jax
-
-    try:
-        state, meta = checkpoints.restore(jax.eval_shape(trainer.init, key), done)
-    except ValueError as err:
-        raise UsageError(f"cannot resume: {err}") from None
-    why = _replay_in_flight(vec, meta.get(IN_FLIGHT), state)
-    if not why:
-        sys.stderr.write(f"jaxsimrl train-foam: resumed at update {done} with its {vec.num_envs} episodes in "
-                         f"flight replayed\n")
-        return state
-    sys.stderr.write(f"jaxsimrl train-foam: resumed at update {done}; its episodes in flight were not "
-                     f"replayed ({why}): every env starts a new episode\n")
-    return trainer.restart_episodes(state, jax.random.fold_in(key, done))
-
-
-def _replay_in_flight(vec: Any, snapshot: Any, state: Any) -> str:
-    """Replay a checkpoint's episodes in flight into the new batch; "" if it matches, else why not."""
-    import numpy as np
-
-    if not snapshot:
-        return "the checkpoint has no record of them"
-    saved = np.asarray(state.obs, np.float32).tolist()
-    if [np.float32(entry.get("obs", [])).tolist() for entry in snapshot] != saved:
-        return "the record does not match the checkpoint's observations"
-    return vec.batch.replay(snapshot)
-
-
-class _HostTrainer:
-    """The trainer as the training loop sees it: a chunk whose host side failed raises, unsaved."""
-
-    def __init__(self, trainer: Any, vec: Any, episodes: Any, cursor: dict[str, int]) -> None:
-        self.trainer, self.vec, self.episodes, self.cursor = trainer, vec, episodes, cursor
-        self.num_updates = trainer.num_updates
-
-    def run_chunk(self, state: Any) -> tuple[Any, dict[str, Any]]:
-        import jax
-
-        state, metrics = self.trainer.run_chunk(state)
-        metrics = jax.device_get(metrics)
-        if self.vec.error is not None:
-            self.episodes.discard_pending()
-        self.vec.raise_if_failed()
-        self.cursor["update"] += 1
-        return state, metrics
-
-
-def foam_summary(summary: dict[str, Any], episodes: Any, plan: FoamPlan) -> dict[str, Any]:
-    """summary.json entries of a foam run (from episodes.csv and the metrics rows' training time)."""
-    wall = float(summary.get("wall_time_s", 0.0))
-    count = len(episodes.rows)
-    # num_updates: none is planned, the episode target sets the length (trainer.num_updates is only a
-    # safety bound, see total_steps_for)
-    return {"episodes": count, "episodes_target": plan.episodes, "complete": count >= plan.episodes,
-            "num_updates": None,
-            "episodes_per_hour": count / wall * 3600 if wall > 0 else math.nan,
-            "final_mean_iterations": episodes.moving_iterations(),
-            # None where a row lacks the cost (episodes of a run written before it was recorded)
-            "final_mean_linear_iterations": _finite_or_none(episodes.moving_mean("linear_iterations")),
-            "final_mean_solver_time_s": _finite_or_none(episodes.moving_mean("solver_time_s")),
-            "failures": episodes.failures(),
-            "outcomes": episodes.outcomes(), "pool": plan.pool,
-            "pool_utilisation": episodes.busy_s() / (plan.pool * wall) if wall > 0 else math.nan}
-
-
-def _finite_or_none(value: float) -> float | None:
-    return value if math.isfinite(value) else None
-
-
-def _config_record(plan: FoamPlan) -> dict[str, Any]:
-    from importlib.metadata import version
-
-    import jax
-
-    from jaxsimrl.envs.foam_config import foam_config_to_json
-
-    now = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
-    base = plan.record if plan.resume else {"env": "foam", "seed": plan.seed, "created_utc": now}
-    if plan.init_from is not None:
-        base["init_from"] = {"run_dir": str(plan.init_from.run_dir), "update": plan.init_from.update}
-    record = {**base, "ppo": plan.ppo.to_dict(), "foam": foam_config_to_json(plan.foam),
-              "episodes_target": plan.episodes, "pool": plan.pool, "backend": plan.backend,
-              "jax_version": jax.__version__, "jaxsimrl_version": version("jaxsimrl")}
-    if plan.resume:
-        record["resumed_utc"] = [*base.get("resumed_utc", []), now]
-    return record
 
 
 def _drop_if_empty(run: Any, plan: FoamPlan) -> None:
@@ -345,11 +148,11 @@ def _stopped_text(run: Any, plan: FoamPlan) -> str:
     return "stopped before the first update was saved; nothing to resume"
 
 
-def _interrupt_handler(run: Any, plan: FoamPlan, progress: Any) -> Callable[[int], None]:
+def _interrupt_handler(run: Any, plan: FoamPlan) -> Callable[[int], None]:
     """What a Ctrl-C during an update does, at once (runs.training.interrupts_deferred): the first is
     acknowledged and stops the run after the update in flight is saved; the second ends the process
     now, as a kill would (the solvers die with their workers, everything on disk is whole), and the run
-    resumes from its last checkpoint."""
+    resumes from its last checkpoint. (train_foam stops the live bar before the second.)"""
     def react(count: int) -> None:
         if count == 1:
             sys.stderr.write(f"jaxsimrl train-foam: stopping after this update (waiting for {plan.pool} "
@@ -357,7 +160,6 @@ def _interrupt_handler(run: Any, plan: FoamPlan, progress: Any) -> Callable[[int
                              f"flight\n")
             sys.stderr.flush()
             return
-        progress.stop()  # gives the terminal back
         sys.stderr.write(f"jaxsimrl train-foam: stopped now, without the update in flight; "
                          f"{_stopped_text(run, plan)}\n")
         sys.stderr.flush()

@@ -6,8 +6,10 @@ batch, with fixed-shape, fixed-dtype results; nothing is vmapped and no ``lax.co
 refuses to vmap an ordered callback and would serialise an unordered one env by env). The host batch
 fans the actions out to its workers and auto-resets finished envs itself (gymnasium's SAME_STEP
 mode: ``infos["final_obs"]`` holds the pre-reset observation), so infos and episode records stay on
-the host: every ended episode is handed to ``on_episode(env_id, final_info)``. A done env without a
-``final_info`` (BatchedFoamEnv's non-transition after a failed auto-reset) ended no episode.
+the host: every ended episode is kept as ``(env_id, final_info)`` until the driver takes them, as data,
+after the jitted call (:meth:`HostVecEnv.take_episodes`); ``on_episode(env_id, final_info)``, if given,
+is also told of each as it ends (a live progress bar). A done env without a ``final_info``
+(BatchedFoamEnv's non-transition after a failed auto-reset) ended no episode.
 
 The callback never raises: solver faults are already outcomes of the batch (an ended episode with a
 cause). Anything else that goes wrong on the host (a bug, a broken pool) is caught and kept in
@@ -79,8 +81,9 @@ class HostVecEnv:
         self.batch = batch
         self.num_envs = int(batch.num_envs)
         self.obs_dim = int(np.prod(batch.observation_spec.shape))
-        self.on_episode = on_episode or (lambda env_id, info: None)
+        self.on_episode = on_episode
         self.error: str | None = None
+        self._ended: list[tuple[int, dict[str, Any]]] = []  # since the last take_episodes()
 
     # ---- VecEnv ----------------------------------------------------------------------------------
     def action_space(self) -> BoxSpec:
@@ -107,6 +110,12 @@ class HostVecEnv:
         return io_callback(self._host_step, shapes, state, actions, ordered=True)
 
     # ---- driver side -----------------------------------------------------------------------------
+    def take_episodes(self) -> list[tuple[int, dict[str, Any]]]:
+        """The episodes ended since the last call, in order, as ``(env_id, final_info)``; the driver
+        takes them after each jitted call (those of a failed call too: it decides to drop them)."""
+        ended, self._ended = self._ended, []
+        return ended
+
     def raise_if_failed(self) -> None:
         """After a jitted call: raise the host failure it hit, if any (one line)."""
         if self.error is not None:
@@ -145,7 +154,9 @@ class HostVecEnv:
         for i in np.flatnonzero(done):
             final_obs[i] = np.asarray(infos["final_obs"][i], np.float32)
         for i in np.flatnonzero(ended):
-            self.on_episode(int(i), env_info(infos["final_info"], int(i)))
+            self._ended.append((int(i), env_info(infos["final_info"], int(i))))
+            if self.on_episode is not None:
+                self.on_episode(*self._ended[-1])
         return VecStep(obs, final_obs, np.asarray(reward, np.float32), np.asarray(terminated, bool),
                        np.asarray(truncated, bool), (episodes + ended).astype(np.int32))
 

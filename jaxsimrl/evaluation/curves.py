@@ -15,7 +15,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from jaxsimrl.runs.episodes import MOVING_WINDOW
+from jaxsimrl.envs.foam_episodes import MOVING_WINDOW
 from jaxsimrl.runs.run_dir import MetricsLog, Row, RunDir, agent_rows, rows_with_episodes
 
 

@@ -6,7 +6,8 @@ never on the batch it shares: so the same command gives the same numbers whateve
 
 - :class:`ConstantController`: the same factors at every step (best constant, the tutorial's defaults).
 - :class:`RandomController`: factors uniform in the action box at every step (the paper's baseline).
-- :class:`LearnedController`: the trained policy, deterministic (its mean action) or stochastic.
+- :class:`LearnedController`: the trained policy, deterministic (its mean action) or stochastic: a thin
+  adapter from this protocol (begin/act/end per uid) to a :class:`jaxsimrl.policy.BatchActor`.
 
 ``repeats`` says whether more than one run per (geometry, velocity) is informative: a deterministic
 controller on a deterministic solver gives the same episode every time.
@@ -15,11 +16,12 @@ controller on a deterministic solver gives the same episode every time.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from jaxsimrl.evaluation.foam_policy import PolicyActor
+if TYPE_CHECKING:  # only a type: the controllers themselves need no JAX
+    from jaxsimrl.policy import BatchActor
 
 
 class ConstantController:
@@ -64,9 +66,9 @@ class RandomController:
 
 class LearnedController:
     """The trained policy: its mean action (``deterministic``) or a sample of it at every step, drawn
-    with the keys of ``seed`` (see PolicyActor)."""
+    with the keys of ``seed`` (see BatchActor)."""
 
-    def __init__(self, name: str, actor: PolicyActor, deterministic: bool, seed: int = 0) -> None:
+    def __init__(self, name: str, actor: BatchActor, deterministic: bool, seed: int = 0) -> None:
         self.name = name
         self.actor = actor
         self.deterministic = deterministic

@@ -50,7 +50,9 @@ from foam_bridge.config import (
     FoamEnvConfig,
     without_convergence_test,
 )
-from jaxsimrl.evaluation.foam_runner import EpisodeResult, Job
+from jaxsimrl.evaluation.foam_controllers import ConstantController, LearnedController, RandomController
+from jaxsimrl.evaluation.foam_reference_cache import CachedReference, ReferenceCache, reference_keys
+from jaxsimrl.evaluation.foam_runner import EpisodeResult, Job, run_episodes
 from jaxsimrl.runs.atomic import atomic_write_json, atomic_write_text
 
 EVAL_DIR = "eval"
@@ -287,10 +289,9 @@ def plan(names: Sequence[str], velocities: Sequence[float], repeats: dict[str, b
 def make_controllers(run: Any, baseline: Baseline | None, pool: int, seed: int,
                      names: Sequence[str] = CONTROLLERS) -> dict[str, Any]:
     """The controllers ``names`` of the protocol (CONTROLLERS; "best_constant" needs a baseline)."""
-    from jaxsimrl.evaluation.foam_controllers import ConstantController, LearnedController, RandomController
-    from jaxsimrl.evaluation.foam_policy import PolicyActor
+    from jaxsimrl.policy import BatchActor  # JAX, only once learned controllers are built
 
-    actor = PolicyActor(run, pool)
+    actor = BatchActor(run.policy, pool)
     makers = {
         "learned_deterministic": lambda: LearnedController("learned_deterministic", actor, True, seed),
         "learned_stochastic": lambda: LearnedController("learned_stochastic", actor, False, seed),
@@ -313,7 +314,7 @@ def evaluate_foam(spec: EvalSpec, on_result: Callable[[EpisodeResult, int, int],
     """Run the protocol on ``spec.run_dir``'s last checkpoint; write eval.json, eval.csv and the
     figures to ``spec.output_dir``; return the report. Bad input: one-line ValueError, before any
     solver starts."""
-    from jaxsimrl.evaluation.foam_policy import load_foam_run
+    from jaxsimrl.evaluation.foam_policy import load_foam_run  # JAX: keeps the CLI light until it runs
 
     say = say or (lambda text: None)
     spec.validate()
@@ -346,7 +347,6 @@ def _run_plan(spec: EvalSpec, run: Any, shapes: dict[str, float | None], jobs: l
               ) -> tuple[list[EpisodeResult], References]:
     """Every job, one geometry (one case, one pool) after the other, each geometry's reference runs
     first (with ``spec.reference_iterations``); results in plan order."""
-    from jaxsimrl.evaluation.foam_runner import run_episodes
 
     results: list[EpisodeResult] = []
     references = References(spec, baseline, run.foam)
@@ -373,7 +373,6 @@ class References:
     of every run's final U field against its (geometry, velocity)'s reference."""
 
     def __init__(self, spec: EvalSpec, baseline: Baseline | None, cfg: FoamEnvConfig) -> None:
-        from jaxsimrl.evaluation.foam_reference_cache import ReferenceCache
 
         self.iterations = spec.reference_iterations
         self.factors = as_action(cfg, baseline.factors if baseline is not None else TUTORIAL_DEFAULTS)
@@ -395,9 +394,6 @@ class References:
 
     def run(self, cfg: FoamEnvConfig, geometry: str, velocities: Sequence[float], pool: int,
             progress: Callable[[EpisodeResult], None]) -> None:
-        from jaxsimrl.evaluation.foam_controllers import ConstantController
-        from jaxsimrl.evaluation.foam_reference_cache import reference_keys
-        from jaxsimrl.evaluation.foam_runner import run_episodes
 
         long_run = dataclasses.replace(without_convergence_test(cfg), max_iterations=self.iterations)
         keys = {} if self.cache is None else reference_keys(long_run, velocities, self.factors)
@@ -424,7 +420,6 @@ class References:
     def _store(self, key: str | None, geometry: str, result: EpisodeResult, residuals: dict[str, float]
                ) -> None:
         """Keep a reference that ran its iterations in the cache (not one that failed on the way)."""
-        from jaxsimrl.evaluation.foam_reference_cache import CachedReference
 
         if key is None or result.outcome != "truncated" or result.iterations != self.iterations \
                 or result.final_u is None:

@@ -20,6 +20,7 @@ import numpy as np
 
 from jaxsimrl.agents.ppo.evaluate import ActFn, scan_episodes
 from jaxsimrl.envs.lorenz import P_MINUS, Lorenz, LorenzParams
+from jaxsimrl.policy import load_agents, load_policy
 from jaxsimrl.runs.atomic import atomic_write_json
 
 EVAL_FILE = "eval.json"
@@ -112,7 +113,7 @@ def _report(agent: Rollout, base: Rollout, params: LorenzParams, episodes: int, 
 
 
 def agents_act(policies: list[Any], stochastic: bool) -> ActFn:
-    """One ActFn for the LoadedPolicies ``policies`` (of one run): a single policy acts on the whole
+    """One ActFn for the TrainedPolicies ``policies`` (of one run): a single policy acts on the whole
     batch; several act vmapped over their stacked parameters, each on its own block of episodes."""
     policy, count = policies[0].policy, len(policies)
     if count == 1:
@@ -144,7 +145,6 @@ def evaluate_run(run_path: Path, episodes: int = 32, stochastic: bool = False, s
     profile is drawn to RUN_DIR/eval_profile.png; with ``agent=K`` only agent K, into
     eval-agent-K.json and eval_trajectory-agent-K.png."""
     from jaxsimrl.evaluation.plots import plot_trajectories
-    from jaxsimrl.introspect.loading import load_agents, load_policy
 
     policies = load_agents(run_path) if agent is None else [load_policy(run_path, agent=agent)]
     env, params = Lorenz(), LorenzParams()

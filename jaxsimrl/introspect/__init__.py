@@ -26,7 +26,7 @@ from jaxsimrl.introspect.slices import (
     policy_profile,
     policy_slice,
 )
-from jaxsimrl.introspect.squashed import ActionDistribution
+from jaxsimrl.policy.distribution import ActionDistribution
 
 __all__ = ["ActionDistribution", "FactorHistory", "HiddenPCA", "LoadedPolicy", "PolicyProfile", "PolicySlice",
            "Sensitivity", "action_sensitivity", "factor_history", "hidden_pca", "load_agents", "load_policy",

@@ -9,12 +9,15 @@ step: NaN there).
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
-from matplotlib.figure import Figure
 
-from jaxsimrl.introspect.envs import FOAM_ACTION_NAMES
+from jaxsimrl.introspect.figure import new_figure
+from jaxsimrl.policy.spec import FOAM_ACTION_NAMES
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 
 class FactorHistory(NamedTuple):
@@ -49,7 +52,7 @@ def factor_history(record: dict[str, np.ndarray], residual: str = "p") -> Factor
 def plot_factor_history(data: FactorHistory) -> Figure:
     """alpha_u (top) and alpha_p (bottom) against the iteration (left, as held from step to step) and
     against the residual each answered (right, log scale); one colour per inlet velocity."""
-    fig = Figure(figsize=(11, 6), layout="constrained")
+    fig = new_figure(11, 6)
     axes = fig.subplots(2, 2, sharey="row")
     speeds = sorted(set(data.velocity.tolist()))
     colours = {v: f"C{i % 10}" for i, v in enumerate(speeds)}

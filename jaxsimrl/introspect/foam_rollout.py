@@ -2,9 +2,9 @@
 
 The episodes run through eval-foam's machinery: :func:`jaxsimrl.evaluation.foam_runner.run_episodes`
 (a pool of simpleFoam workers, one episode per slot, each reset at its own inlet velocity) with a
-:class:`jaxsimrl.evaluation.foam_controllers.LearnedController`: the policy's mean action (as eval-foam's
-learned_deterministic), or a sample keyed by (seed, episode index, step), so a sampled episode does not
-depend on the pool size or on the other episodes.
+:class:`jaxsimrl.evaluation.foam_controllers.LearnedController` on a :class:`jaxsimrl.policy.BatchActor`:
+the policy's mean action (as eval-foam's learned_deterministic), or a sample keyed by (seed, episode
+index, step), so a sampled episode does not depend on the pool size or on the other episodes.
 
 The record is a dict of numpy arrays with one entry per step of every episode, in episode order
 (``pandas.DataFrame`` takes the 1-D ones as they are; episodes have different lengths):
@@ -26,6 +26,9 @@ from typing import Any
 import numpy as np
 
 from foam_bridge.config import FoamEnvConfig
+from jaxsimrl.evaluation.foam_controllers import LearnedController
+from jaxsimrl.evaluation.foam_runner import Job, run_episodes
+from jaxsimrl.policy import BatchActor
 
 #: The controller name the rollout's episodes run under.
 CONTROLLER = "policy"
@@ -37,8 +40,6 @@ def foam_rollout(policy: Any, env_params: FoamEnvConfig | None = None, steps: in
     """``episodes`` episodes per inlet velocity of ``policy`` (a LoadedPolicy of a train-foam run) on
     ``env_params`` (default: the run's FoamEnvConfig; e.g. ``dataclasses.replace(policy.env_params,
     mesh_scale=0.4)``), on ``pool`` workers. The policy acts in its training box whatever the config's."""
-    from jaxsimrl.evaluation.foam_runner import Job, run_episodes
-
     cfg = _check(policy, env_params, steps, episodes, velocities, pool)
     plan = [(v, sample) for v in _velocities(velocities) for sample in range(episodes)]
     jobs = [Job(uid, CONTROLLER, "rollout", v, sample) for uid, (v, sample) in enumerate(plan)]
@@ -69,12 +70,7 @@ def _check(policy: Any, env_params: Any, steps: Any, episodes: Any, velocities: 
 
 def _controller(policy: Any, batch: int, deterministic: bool, seed: int) -> Any:
     """eval-foam's learned controller, on the loaded parameters and the training action box."""
-    from jaxsimrl.evaluation.foam_controllers import LearnedController
-    from jaxsimrl.evaluation.foam_policy import FoamRun, PolicyActor
-
-    run = FoamRun(policy.run_dir, policy.config, policy.env_params, policy.params, seed, policy.update,
-                  policy.update)
-    return LearnedController(CONTROLLER, PolicyActor(run, batch), deterministic, seed)
+    return LearnedController(CONTROLLER, BatchActor(policy, batch), deterministic, seed)
 
 
 def _record(policy: Any, results: Sequence[Any], fields: tuple[str, ...]) -> dict[str, np.ndarray]:

@@ -7,10 +7,14 @@ of the rollout record holding one number per step.
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
-from matplotlib.figure import Figure
+
+from jaxsimrl.introspect.figure import new_figure
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 
 class HiddenPCA(NamedTuple):
@@ -40,7 +44,7 @@ def hidden_pca(record: dict[str, np.ndarray], episode: int = 0, components: int 
 
 def plot_hidden_pca(data: HiddenPCA) -> Figure:
     """The trajectory in the plane of the first two components, coloured by ``data.color``."""
-    fig = Figure(figsize=(6.5, 5), layout="constrained")
+    fig = new_figure(6.5, 5)
     ax = fig.subplots()
     second = data.scores[:, 1] if data.scores.shape[1] > 1 else np.zeros(len(data.scores))
     ax.plot(data.scores[:, 0], second, color="0.8", lw=0.4, zorder=1)

@@ -8,12 +8,16 @@ are done at once with ``vmap``.
 
 from __future__ import annotations
 
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
 import numpy as np
-from matplotlib.figure import Figure
+
+from jaxsimrl.introspect.figure import new_figure
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 
 class Sensitivity(NamedTuple):
@@ -37,7 +41,7 @@ def action_sensitivity(policy: Any, record: dict[str, np.ndarray], episode: int 
 def plot_sensitivity(data: Sensitivity, dt: float = 1.0, time_label: str = "step") -> Figure:
     """One heat map per action component: observation components (rows) over time (columns)."""
     actions = len(data.action_names)
-    fig = Figure(figsize=(11, 2.4 * actions), layout="constrained")
+    fig = new_figure(11, 2.4 * actions)
     time = data.step * dt
     for a, ax in enumerate(fig.subplots(actions, 1, sharex=True, squeeze=False)[:, 0]):
         field = data.jacobian[:, a, :].T

@@ -10,10 +10,14 @@ shares.
 
 from __future__ import annotations
 
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
-from matplotlib.figure import Figure
+
+from jaxsimrl.introspect.figure import new_figure
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 
 class PolicySlice(NamedTuple):
@@ -72,7 +76,7 @@ def plot_policy_profile(data: PolicyProfile, value: bool = True, points: Any = N
     """One panel per action component (and the value) against the component; ``points`` = (x (N,),
     actions (N, A)) adds the observations and actions of real steps (e.g. a rollout's) as dots."""
     panels = len(data.action_names) + int(value)
-    fig = Figure(figsize=(4.0 * panels, 3.4), layout="constrained")
+    fig = new_figure(4.0 * panels, 3.4)
     axes = fig.subplots(1, panels, squeeze=False)[0]
     for i, (ax, name) in enumerate(zip(axes, data.action_names, strict=False)):
         ax.plot(data.x, data.actions[:, i], color="C0", label="policy (mean action)")
@@ -95,7 +99,7 @@ def plot_policy_slice(data: PolicySlice, value: bool = True) -> Figure:
     panels = [(name, data.actions[..., i]) for i, name in enumerate(data.action_names)]
     if value:
         panels.append(("value", data.values))
-    fig = Figure(figsize=(4.2 * len(panels), 3.6), layout="constrained")
+    fig = new_figure(4.2 * len(panels), 3.6)
     extent = (data.x[0], data.x[-1], data.y[0], data.y[-1])
     for ax, (title, field) in zip(fig.subplots(1, len(panels), squeeze=False)[0], panels, strict=True):
         image = ax.imshow(field, origin="lower", extent=extent, aspect="auto", cmap="coolwarm")

@@ -78,7 +78,7 @@ class FoamProgress:
     """Progress of a host-env (OpenFOAM) run, by episodes: done of the target, the moving mean of the
     iterations to converge over the last 100 episodes (what the paper plots), failures by outcome,
     episodes per hour and the pool's utilisation. A live bar on a TTY, one plain line per update off it.
-    The bar counts every episode as it ends (:meth:`episode_ended`, hooked to the episode log), not only
+    The bar counts every episode as it ends (:meth:`episode_ended`, told by the host env), not only
     after each update; the count comes first and the statistics last, so a narrow terminal (80 columns)
     cuts the statistics, never the count."""
 
@@ -92,6 +92,7 @@ class FoamProgress:
         self.live = self.console.is_terminal if live is None else live
         self._progress: Progress | None = None
         self._task = None
+        self._ended = 0  # episodes ended since the last update (not in the log yet)
 
     def __enter__(self) -> FoamProgress:
         if self.live:
@@ -117,10 +118,12 @@ class FoamProgress:
             self._progress.stop()
 
     def episode_ended(self) -> None:
-        """Count an episode that has just ended (called from the thread that steps the envs)."""
+        """Count an episode that has just ended (called from the thread that steps the envs); the log
+        has it after the update."""
+        self._ended += 1
         if self._progress is not None:
             self._progress.update(self._task, description="training",
-                                  completed=min(self.episodes.count, self.target))
+                                  completed=min(self.episodes.count + self._ended, self.target))
 
     def stats(self) -> str:
         """The numbers after the episode count, as one short text."""
@@ -140,6 +143,7 @@ class FoamProgress:
     def update(self, env_steps: int, steps_per_s: float, mean_return: float, update: int,
                num_updates: int) -> None:
         """Report the state after an update (TrainingProgress's signature; the episode log has the rest)."""
+        self._ended = 0  # the update's episodes are in the log now
         count = self.episodes.count
         if self._progress is not None:
             self._progress.update(self._task, description="training", completed=min(count, self.target),

@@ -1,8 +1,9 @@
 """The controller ``solve`` acts with: a train-foam run's policy, or the one shipped in the package.
 
 A controller is a directory (jaxsimrl/controllers/README: config.json, a checkpoint, provenance.json);
-:func:`load_controller` loads its policy through :func:`jaxsimrl.introspect.load_policy` and says where it
-came from. JAX is imported here, in the driver only: the solver runs in spawned workers.
+:func:`load_controller` loads its policy through :func:`jaxsimrl.policy.load_policy` (acting only: no
+rollouts, no plotting) and says where it came from. JAX is imported here, in the driver only, and on first
+use (:class:`BackgroundLoad` overlaps it with the case checks): the solver runs in spawned workers.
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ PROVENANCE = "provenance.json"
 
 @dataclass(frozen=True)
 class Controller:
-    """A loaded policy (``jaxsimrl.introspect.LoadedPolicy`` or anything with its ``act``,
+    """A loaded policy (a ``jaxsimrl.policy.TrainedPolicy`` or anything with its ``act``,
     ``env_params`` and ``action_dim``) and its provenance (a JSON-ready dict)."""
 
     policy: Any
@@ -30,7 +31,7 @@ class Controller:
 def load_controller(path: str | Path | None = None) -> Controller:
     """The policy of a run directory (default: the shipped controller); one-line ValueError if it is not a
     train-foam run."""
-    from jaxsimrl.introspect import load_policy
+    from jaxsimrl.policy import load_policy  # JAX: seconds, overlapped by BackgroundLoad
 
     where = Path(path) if path is not None else DEFAULT_CONTROLLER
     policy = load_policy(where)

@@ -43,10 +43,10 @@ def run_own(source: Path, dest: Path, label: str, timeout_s: float, factors: Seq
             flat: bool = False) -> OwnRun:
     """Copy ``source`` to ``dest`` (mesh it if needed) and run simpleFoam once to its end; ``factors``:
     constant (alpha_u, alpha_p[, turbulence]) merged into its relaxationFactors (else its own)."""
-    from foam_bridge.case import copy_case, run_application
     from foam_bridge.logparse import LogParser
     from foam_bridge.openfoam import find_openfoam
     from foam_bridge.solver import run_to_end
+    from foam_bridge.template import copy_case, run_application
 
     openfoam = find_openfoam()
     copy_case(source, dest)

@@ -42,8 +42,8 @@ class CaseSettings:
 def read_case_settings(case: Path) -> CaseSettings:
     """Read the case's relaxation factors and budget as OpenFOAM expands them (on a scratch copy)."""
     from foam_bridge import foamdict
-    from foam_bridge.case import copy_case
     from foam_bridge.openfoam import find_openfoam
+    from foam_bridge.template import copy_case
 
     openfoam = find_openfoam()
     with tempfile.TemporaryDirectory(prefix="jaxsimrl_solve_read_") as scratch:

@@ -8,12 +8,19 @@ batch.py (SeedBatch: many seeds or a hyperparameter sweep, vmapped in one jitted
 policy.py (make_policy) | evaluate.py (scan_episodes, episode_returns over random initial states).
 """
 
-from jaxsimrl.agents.ppo.batch import SeedBatch
-from jaxsimrl.agents.ppo.config import PPOConfig
-from jaxsimrl.agents.ppo.evaluate import episode_returns
-from jaxsimrl.agents.ppo.policy import Policy, PolicyParams, make_policy
-from jaxsimrl.agents.ppo.rollout import RunnerState
-from jaxsimrl.agents.ppo.train import PPOTrainer, make_train
+import importlib
+from typing import Any
 
-__all__ = ["PPOConfig", "PPOTrainer", "Policy", "PolicyParams", "RunnerState", "SeedBatch", "episode_returns",
-           "make_policy", "make_train"]
+# name -> module: imported on first use, so that acting with a trained policy (jaxsimrl.policy, solve)
+# does not load the trainer (optax, the rollout, distrax for sampling) it never calls
+_EXPORTS = {"SeedBatch": "batch", "PPOConfig": "config", "episode_returns": "evaluate",
+            "Policy": "policy", "PolicyParams": "policy", "make_policy": "policy", "RunnerState": "rollout",
+            "PPOTrainer": "train", "make_train": "train"}
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _EXPORTS:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    return getattr(importlib.import_module(f"{__name__}.{_EXPORTS[name]}"), name)

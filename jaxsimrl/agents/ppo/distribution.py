@@ -28,16 +28,22 @@ entropy reported is that of the unclipped squash on the widened box.
 
 from __future__ import annotations
 
-import distrax
+from typing import TYPE_CHECKING
+
 import jax
 import jax.numpy as jnp
 import numpy as np
+
+if TYPE_CHECKING:
+    import distrax
 
 _HERMITE_NODES, _HERMITE_WEIGHTS = np.polynomial.hermite.hermgauss(32)
 
 
 def gaussian(mean: jax.Array, log_std: jax.Array) -> distrax.MultivariateNormalDiag:
     """The pre-squash policy distribution (log_std broadcasts against mean)."""
+    import distrax  # on first sample: deterministic acting (solve) never pays its second of import
+
     return distrax.MultivariateNormalDiag(mean, jnp.broadcast_to(jnp.exp(log_std), mean.shape))
 
 

@@ -1,15 +1,15 @@
 """Which environment a run was trained on, rebuilt from its config.json (``record["env"]``).
 
-Each kind of run has a builder from the run's record to an :class:`EnvSpec`: the env object, the
-params it trained with, readable names for the observation and action components (used by the
-introspection plots), the observation size the run's config implies (checked against the
-checkpoint) and the function that rolls a policy out in it. A new kind of run adds one entry to
-``BUILDERS``:
+Each kind of run has a builder from the run's record to an :class:`EnvSpec`: the action box the policy
+acts in, the env params it trained with, readable names for the observation and action components (used
+by the introspection plots), the observation size the run's config implies (checked against the
+checkpoint) and, for a pure-JAX env, the env object itself (what a jitted rollout steps). A new kind of
+run adds one entry to ``BUILDERS``:
 
-- ``"lorenz"`` (train-lorenz): the pure-JAX Lorenz env, rolled out in one jitted scan;
+- ``"lorenz"`` (train-lorenz): the pure-JAX Lorenz env and its default params;
 - ``"foam"`` (train-foam): the run's FoamEnvConfig (config.json's ``"foam"`` section) as the params and
-  its action box of (alpha_u, alpha_p); building it needs no OpenFOAM, rolling out runs real simpleFoam
-  episodes (:mod:`jaxsimrl.introspect.foam_rollout`).
+  its box of (alpha_u, alpha_p[, alpha_t]); no env object (episodes are real simpleFoam runs, rolled out
+  by :mod:`jaxsimrl.introspect.foam_rollout`), and building it needs no OpenFOAM.
 """
 
 from __future__ import annotations
@@ -17,6 +17,12 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
+
+from foam_bridge.config import ACTION_NAMES
+from foam_bridge.env import action_spec
+from jaxsimrl.agents.ppo.policy import ActionBox
+from jaxsimrl.envs.foam_config import foam_config_from_json
+from jaxsimrl.envs.lorenz import Lorenz
 
 LORENZ_OBS_NAMES = ("x", "y", "z", "dx/dt", "dy/dt", "dz/dt")
 LORENZ_ACTION_NAMES = ("d sigma", "d rho", "d beta")
@@ -30,36 +36,34 @@ FOAM_STATE_NAME = "state"
 class EnvSpec:
     """An env as a policy of a run sees it."""
 
-    env: Any
+    box: ActionBox
     params: Any
     obs_names: tuple[str, ...] | None
     action_names: tuple[str, ...] | None
     obs_dim: int | None = None  # the observation size the run's config implies; None: not checked
-    rollout: Callable[..., Any] | None = None  # (policy, env_params, steps, episodes, seed, deterministic,
-    #                                            **options) -> record; None: the pure-JAX scan
+    env: Any = None  # the pure-JAX env a jitted rollout steps; None: no such env (train-foam)
+
+    @classmethod
+    def of_env(cls, env: Any, env_params: Any = None, obs_names: tuple[str, ...] | None = None,
+               action_names: tuple[str, ...] | None = None) -> EnvSpec:
+        """The spec of a pure-JAX env object under ``env_params`` (default: its default params)."""
+        params = env.default_params() if env_params is None else env_params
+        return cls(ActionBox.of_env(env, params), params, obs_names, action_names, env=env)
 
 
 def lorenz_spec(record: dict[str, Any]) -> EnvSpec:
     """train-lorenz trains on ``Lorenz().default_params()`` (its config.json stores no env params)."""
-    from jaxsimrl.envs.lorenz import Lorenz
-
-    env = Lorenz()
-    return EnvSpec(env, env.default_params(), LORENZ_OBS_NAMES, LORENZ_ACTION_NAMES)
+    return EnvSpec.of_env(Lorenz(), None, LORENZ_OBS_NAMES, LORENZ_ACTION_NAMES)
 
 
 def foam_spec(record: dict[str, Any]) -> EnvSpec:
     """train-foam's env: the FoamEnvConfig of config.json's "foam" section (a one-line ValueError if it
     is missing or bad) and its action box."""
-    from foam_bridge.config import ACTION_NAMES
-    from jaxsimrl.envs.foam_config import foam_config_from_json
-    from jaxsimrl.evaluation.foam_policy import FoamActionBox
-    from jaxsimrl.introspect.foam_rollout import foam_rollout
-
     if "foam" not in record:
         raise ValueError("config.json names env 'foam' but has no 'foam' section (the FoamEnvConfig)")
     cfg = foam_config_from_json(record["foam"])
     names = ACTION_NAMES[:cfg.action_size]
-    return EnvSpec(FoamActionBox(cfg), cfg, foam_obs_names(cfg), names, cfg.observation_size, foam_rollout)
+    return EnvSpec(ActionBox.of(action_spec(cfg)), cfg, foam_obs_names(cfg), names, cfg.observation_size)
 
 
 def foam_obs_names(cfg: Any) -> tuple[str, ...]:
@@ -73,8 +77,6 @@ def foam_obs_names(cfg: Any) -> tuple[str, ...]:
     if cfg.observe_progress:
         names.append("progress")
     if cfg.observe_action:
-        from foam_bridge.config import ACTION_NAMES
-
         names += [f"last {name}" for name in ACTION_NAMES[:cfg.action_size]]
     return tuple(names)
 
