@@ -13,6 +13,7 @@ timeouts)."""
 from __future__ import annotations
 
 import contextlib
+import csv
 import json
 import os
 import signal
@@ -285,9 +286,12 @@ def test_episodes_csv_records_the_node_and_reads_older_files_without_it(tmp_path
     log.add(1, 1, {"episode": {"seed": 2, "iterations": 0, "outcome": "crashed", "actions": []}})
     log.flush()
     assert [row["node"] for row in EpisodeLog.load(path, 1).rows] == ["10.0.0.7/86c67176", ""]
-    header, *rows = path.read_text().splitlines()
-    older = ",".join(header.split(",")[:-1])  # a file written before the column existed
-    path.write_text("\n".join([older, *(row.rsplit(",", 1)[0] for row in rows)]) + "\n")
+    with path.open(newline="") as handle:  # a file written before the node column existed
+        table = list(csv.reader(handle))
+    keep = [i for i, name in enumerate(table[0]) if name != "node"]
+    with path.open("w", newline="") as handle:
+        csv.writer(handle, lineterminator="\n").writerows([[row[i] for i in keep] for row in table])
+    assert "node" not in path.read_text().splitlines()[0].split(",")
     assert [row["node"] for row in EpisodeLog.load(path, 1).rows] == ["", ""]
 
 
