@@ -10,8 +10,10 @@ on first use, so importing the package only registers the gymnasium ids (nothing
 
 The names: the configuration (FoamEnvConfig and the constants its fields take), the envs (FoamCaseEnv:
 one case; BatchedFoamEnv: N cases on a process pool or Ray, ``make_backend`` for the pool alone; the
-gymnasium envs), a user's case's own MDP (``case_defaults``), the constant-factor grid study
-(``run_grid`` ...), ``export_case`` (an episode's case as a plain OpenFOAM case) and the errors.
+gymnasium envs), a user's case's own MDP (``case_defaults``), the episode pool (``run_episodes``: a
+queue of ``EpisodeJob``s, each with its own reset options and controller, on the local worker pool),
+the constant-factor grid study (``run_grid`` ...), ``export_case`` (an episode's case as a plain
+OpenFOAM case) and the errors.
 Modules whose top says "internal" are the machinery behind these names; their contents may change.
 """
 
@@ -44,6 +46,7 @@ _HOMES: dict[str, tuple[str, ...]] = {
     "user_case": ("case_defaults",),
     "grid": ("GridCell", "best_cell", "grid_config", "plot_grid", "read_grid_csv", "run_grid",
              "write_grid_csv"),
+    "episodes": ("EpisodeJob", "EpisodeRun", "run_episodes"),
     "export": ("export_case",),
     "openfoam": ("find_openfoam",),
     "errors": ("CaseError", "ClusterError", "OpenFOAMNotFoundError", "PoolLostError", "SolverFailure"),
@@ -54,10 +57,10 @@ __all__ = [
     "ACTION_NAMES", "BACKENDS", "BUILTIN_INLET_VELOCITY", "ENV_ID", "FAILURES", "FOLLOW_ALPHA_U",
     "K_OMEGA_ACTION", "MESH_SCALE_USABLE_MIN", "OBSERVATION_BOUND", "OUTCOMES", "PAPER_INLET_TURBULENCE",
     "REWARDS", "SIMPLE_VARIANTS", "STEP_HEIGHT_H", "TEST_CONVERGENCE", "TRAIN_CONVERGENCE", "U_REF",
-    "BatchedFoamEnv", "CaseError", "ClusterError", "FoamCaseEnv", "FoamEnvConfig", "GridCell",
-    "OpenFOAMNotFoundError", "PoolLostError", "RelaxationControlEnv", "RelaxationControlVecEnv",
+    "BatchedFoamEnv", "CaseError", "ClusterError", "EpisodeJob", "EpisodeRun", "FoamCaseEnv", "FoamEnvConfig",
+    "GridCell", "OpenFOAMNotFoundError", "PoolLostError", "RelaxationControlEnv", "RelaxationControlVecEnv",
     "SolverFailure", "best_cell", "case_defaults", "export_case", "failure_reward", "find_openfoam",
-    "grid_config", "make_backend", "plot_grid", "read_grid_csv", "run_grid", "write_grid_csv",
+    "grid_config", "make_backend", "plot_grid", "read_grid_csv", "run_episodes", "run_grid", "write_grid_csv",
 ]
 
 
@@ -96,6 +99,7 @@ if TYPE_CHECKING:  # what type checkers and editors see; at run time __getattr__
         failure_reward,
     )
     from foam_bridge.env import FAILURES, OUTCOMES, FoamCaseEnv
+    from foam_bridge.episodes import EpisodeJob, EpisodeRun, run_episodes
     from foam_bridge.errors import (
         CaseError,
         ClusterError,

@@ -86,6 +86,8 @@ OUTCOMES = ("running", "converged", "truncated", "crashed", "diverged", "hung")
 FAILURES = ("crashed", "diverged", "hung")
 #: Lock file held (fcntl.flock) by the FoamCaseEnv that owns an env directory.
 LOCK_FILE = ".foam_bridge.lock"
+#: The sub-directory of an env directory that holds the running episode's case (read by the episode pool).
+EPISODE_DIR = "episode"
 #: Meshes of a step-height family one env keeps. A new height costs one blockMesh (template.mesh_builtin):
 #: a reset took 0.40-0.44 s instead of 0.08-0.09 s at mesh 0.5-1.0 (measured on a busy 2-core machine),
 #: against 3 s (mesh 0.5) to 30 s (full mesh) for an episode; continuous draws never repeat a height, so
@@ -136,7 +138,7 @@ class FoamCaseEnv:
         self.root = parent / f"env_{env_id}"
         self._lock = _claim_directory(self.root)
         self.base = self.root / "base"
-        self.case_dir = self.root / "episode"
+        self.case_dir = self.root / EPISODE_DIR
         try:
             self.case_info = base_case.build_base_case(cfg, self.base, self.openfoam)
         except BaseException:

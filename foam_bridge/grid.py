@@ -21,10 +21,7 @@ import dataclasses
 import io
 import math
 import os
-import shutil
 import textwrap
-import time
-from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -32,8 +29,8 @@ from typing import Any
 import numpy as np
 
 from foam_bridge.atomic import atomic_write_bytes, atomic_write_text
-from foam_bridge.backends import BAD_INPUT_ERRORS, WORKER_DIED, Reply, Request, make_backend
-from foam_bridge.config import K_OMEGA_ACTION, FoamEnvConfig, work_root
+from foam_bridge.config import K_OMEGA_ACTION, FoamEnvConfig
+from foam_bridge.episodes import EpisodeJob, EpisodeRun, check_pool, run_episodes
 
 __all__ = ["GRID_COLUMNS", "GRID_COLUMNS_3D", "GRID_SEED", "LEGEND_HEIGHT_IN", "MIN_FIGURE_WIDTH_IN",
            "TITLE_FONTSIZE", "GridCell", "best_cell", "cell_label", "check_factors",
@@ -93,24 +90,6 @@ def grid_config(cfg: FoamEnvConfig, alpha_u: Sequence[float], alpha_p: Sequence[
     return dataclasses.replace(cfg, action_low=low, action_high=high).validate()
 
 
-class _Slot:
-    """One pool slot running one cell's episode."""
-
-    def __init__(self, index: int, factors: tuple[float, ...]) -> None:
-        self.index = index
-        self.action = np.asarray(factors, np.float64)
-        self.started = time.monotonic()
-        self.iterations = 0
-
-    def cell(self, iterations: int, outcome: str, cause: str = "", wall_time_s: float | None = None) \
-            -> GridCell:
-        """The finished cell; wall time from the episode record if there is one, else host-measured."""
-        elapsed = time.monotonic() - self.started if wall_time_s is None else wall_time_s
-        alpha_u, alpha_p, *alpha_t = (float(a) for a in self.action)
-        return GridCell(alpha_u, alpha_p, int(iterations), outcome, float(elapsed), cause,
-                        alpha_t[0] if alpha_t else None)
-
-
 def run_grid(
     cfg: FoamEnvConfig,
     alpha_u: Sequence[float],
@@ -121,69 +100,30 @@ def run_grid(
     alpha_t: Sequence[float] | None = None,
 ) -> list[GridCell]:
     """Run every (alpha_u, alpha_p) pair (every triple with ``alpha_t``, the k/omega factor) with
-    constant factors; cells come back in row-major grid order (alpha_t varying fastest)."""
+    constant factors on the episode pool; cells come back in row-major grid order (alpha_t varying
+    fastest)."""
     alpha_u, alpha_p = check_factors(alpha_u, "alpha_u"), check_factors(alpha_p, "alpha_p")
     alpha_t = None if alpha_t is None else check_factors(alpha_t, "alpha_t")
-    if isinstance(pool, bool) or not isinstance(pool, int) or pool < 1:
-        raise ValueError(f"pool must be an integer >= 1, got {pool!r}")
+    check_pool(pool)
     cfg = grid_config(cfg, alpha_u, alpha_p, alpha_t).with_absolute_paths()  # workers need no shared cwd
     thirds = [(a,) for a in alpha_t] if alpha_t else [()]
     pairs = [(u, p, *t) for u in alpha_u for p in alpha_p for t in thirds]
-    slots = min(pool, len(pairs))
-    root, temporary = work_root(cfg, work_dir, prefix="foam_grid_")
-    backend = make_backend("local", cfg, slots, slots, root)
-    results: list[GridCell | None] = [None] * len(pairs)
-    try:
-        _drive(backend, pairs, slots, results, on_cell or (lambda cell: None))
-    finally:
-        backend.close()
-        if temporary and not cfg.keep_cases:
-            shutil.rmtree(root, ignore_errors=True)
-    return results  # type: ignore[return-value]
+    jobs = [EpisodeJob(index, factors, seed=GRID_SEED) for index, factors in enumerate(pairs)]
+    report = on_cell or (lambda cell: None)
+    runs = run_episodes(cfg, jobs, pool, work_dir=work_dir, prefix="foam_grid_",
+                        keep_temporary=cfg.keep_cases, on_result=lambda run: report(_cell(run)))
+    return [_cell(run) for run in runs]
 
 
-def _drive(backend: Any, pairs: list, slots: int, results: list, on_cell: Callable[[GridCell], None]) -> None:
-    """Keep every slot busy: start the next cell where an episode ended, step all running ones together."""
-    queue = deque(enumerate(pairs))
-    active: dict[int, _Slot] = {}
-
-    def finish(slot_id: int, cell: GridCell) -> None:
-        results[active.pop(slot_id).index] = cell
-        on_cell(cell)
-
-    while queue or active:
-        starting = []
-        for slot_id in range(slots):  # as many as there are cells left: two free slots, one cell
-            if slot_id not in active and queue:
-                active[slot_id] = _Slot(*queue.popleft())
-                starting.append(slot_id)
-        resets = [Request(s, "reset", {"seed": GRID_SEED, "options": None}) for s in starting]
-        for reply in backend.run(resets) if resets else []:
-            if not reply.ok:
-                _raise_if_bad_input(reply)
-                finish(reply.env_id, active[reply.env_id].cell(0, "crashed", _cause(reply)))
-        steps = [Request(s, "step", {"action": slot.action}) for s, slot in active.items()]
-        for reply in backend.run(steps) if steps else []:
-            slot = active[reply.env_id]
-            if not reply.ok:
-                finish(reply.env_id, slot.cell(slot.iterations, "crashed", _cause(reply)))
-                continue
-            _, _, terminated, truncated, info = reply.value
-            slot.iterations = int(info["iterations"])
-            if terminated or truncated:
-                record = info.get("episode") or {}
-                finish(reply.env_id, slot.cell(slot.iterations, info["outcome"], info.get("cause", ""),
-                                               record.get("wall_time_s")))
-
-
-def _cause(reply: Reply) -> str:
-    return WORKER_DIED if reply.worker_died else reply.error
-
-
-def _raise_if_bad_input(reply: Reply) -> None:
-    """A case or config the env rejects would fail every cell alike: stop with its one-line message."""
-    if reply.kind in BAD_INPUT_ERRORS:
-        raise ValueError(reply.error)
+def _cell(run: EpisodeRun) -> GridCell:
+    """The cell of a constant-factor episode; wall time from the episode record if there is one, else
+    as the host saw it (reset included)."""
+    wall = run.record.wall_time_s if run.record is not None else math.nan
+    if math.isnan(wall):
+        wall = run.host_wall_s + run.reset_s
+    alpha_u, alpha_p, *alpha_t = (float(a) for a in run.job.controller)
+    return GridCell(alpha_u, alpha_p, int(run.iterations), run.outcome, float(wall), run.cause,
+                    alpha_t[0] if alpha_t else None)
 
 
 def write_grid_csv(cells: Sequence[GridCell], path: str | os.PathLike[str]) -> None:

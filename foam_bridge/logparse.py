@@ -29,9 +29,10 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass, field
+from pathlib import Path
 
-__all__ = ["STATE_LIMIT", "VECTOR_COMPONENTS", "CpuClock", "LogParser", "field_residual",
-           "solved_field_names"]
+__all__ = ["LOG_FILE", "STATE_LIMIT", "VECTOR_COMPONENTS", "CpuClock", "LogParser", "SolverCost",
+           "field_residual", "read_solver_cost", "solved_field_names", "solver_cost"]
 
 _TIME = re.compile(r"^Time = (\S+)\s*$")
 _SOLVE = re.compile(r"Solving for (\w+), Initial residual = (\S+), Final residual = (\S+),"
@@ -215,3 +216,67 @@ class LogParser:
     def _diverge(self, what: str) -> None:
         self.failed_at = self.iteration
         self.diverged = f"{what} at iteration {self.iteration}"
+
+
+# ---- a finished run's cost, from its whole log ----------------------------------------------------
+# Relaxation changes what one SIMPLE iteration costs: the linear solvers' inner iterations (the pressure
+# equation's above all) grow or shrink with the factors. These read a whole log once, after a run (the
+# episode pool after an episode's last step); LogParser above is the incremental reader the env uses.
+# ExecutionTime is the solver's CPU time: it does not grow while the solver sits paused between env
+# steps, nor with a busy pool.
+
+#: The log a FoamCaseEnv episode's solver writes in its case directory.
+LOG_FILE = "log.simpleFoam"
+_COST_SOLVE = re.compile(r"Solving for (\w+), Initial residual = \S+, Final residual = \S+, "
+                         r"No Iterations (\d+)")
+_COST_EXECUTION = re.compile(r"^ExecutionTime = (\S+) s", re.MULTILINE)
+_COMPONENT = re.compile(r"^(\w+?)[xyz]$")
+
+
+@dataclass(frozen=True)
+class SolverCost:
+    """Linear-solver iterations per field (``{"U": .., "p": .., "k": .., "omega": ..}``) and the
+    solver's CPU seconds (None if the log has no ExecutionTime line)."""
+
+    linear_iterations: dict[str, int]
+    cpu_time_s: float | None
+
+    @property
+    def total(self) -> int:
+        """Inner iterations of every linear solve in the run."""
+        return sum(self.linear_iterations.values())
+
+    def of(self, name: str) -> int:
+        """Inner iterations of one field's solves (0 if it was never solved)."""
+        return self.linear_iterations.get(name, 0)
+
+
+def solver_cost(log_text: str, vector_fields: tuple[str, ...] = ("U",)) -> SolverCost:
+    """The cost in a simpleFoam log's text: the inner iterations of every solve per field (the
+    components ``Ux``, ``Uy``, ``Uz`` of ``vector_fields`` summed under the field's name) and the last
+    ExecutionTime (summed over the processes of a restarted run, :class:`CpuClock`)."""
+    counts: dict[str, int] = {}
+    for match in _COST_SOLVE.finditer(log_text):
+        name = _cost_field(match.group(1), vector_fields)
+        counts[name] = counts.get(name, 0) + int(match.group(2))
+    times = _COST_EXECUTION.findall(log_text)
+    clock = CpuClock()
+    for seconds in times:
+        clock.add(float(seconds))
+    return SolverCost(counts, clock.total if times else None)
+
+
+def read_solver_cost(case_dir: str | Path, vector_fields: tuple[str, ...] = ("U",)) -> SolverCost | None:
+    """The cost recorded in ``case_dir/log.simpleFoam``, or None if there is no such log."""
+    try:
+        text = (Path(case_dir) / LOG_FILE).read_bytes().decode(errors="replace")
+    except OSError:
+        return None
+    return solver_cost(text, vector_fields)
+
+
+def _cost_field(solved: str, vector_fields: tuple[str, ...]) -> str:
+    match = _COMPONENT.match(solved)
+    if match and match.group(1) in vector_fields:
+        return match.group(1)
+    return solved

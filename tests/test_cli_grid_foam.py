@@ -244,12 +244,18 @@ class _ScriptedPool:
         return replies
 
 
-def test_two_slots_freed_in_one_step_with_one_cell_left_start_only_that_cell():
-    from foam_bridge.grid import _drive
+    def close(self) -> None:
+        pass
 
-    pool, pairs = _ScriptedPool(), [(0.9, 0.9), (0.8, 0.8), (0.7, 0.7)]
-    results: list = [None] * len(pairs)
-    _drive(pool, pairs, 2, results, lambda cell: None)  # raised IndexError when both slots ended at once
-    assert [(c.alpha_u, c.iterations, c.outcome) for c in results] == [
-        (0.9, 100, "converged"), (0.8, 100, "converged"), (0.7, 100, "converged")]
+
+def test_two_slots_freed_in_one_step_with_one_cell_left_start_only_that_cell(monkeypatch, tmp_path):
+    from foam_bridge import episodes
+    from foam_bridge.grid import run_grid
+
+    pool = _ScriptedPool()
+    monkeypatch.setattr(episodes, "make_backend", lambda *args: pool)
+    # three cells on two slots: raised IndexError when both slots ended at once
+    cells = run_grid(FoamEnvConfig(), [0.9, 0.8, 0.7], [0.9], pool=2, work_dir=tmp_path)
+    assert [(c.alpha_u, c.iterations, c.outcome, c.wall_time_s) for c in cells] == [
+        (0.9, 100, "converged", 1.0), (0.8, 100, "converged", 1.0), (0.7, 100, "converged", 1.0)]
     assert pool.resets == [0, 1, 0]

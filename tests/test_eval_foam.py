@@ -19,9 +19,9 @@ from foam_marks import needs_openfoam
 
 from foam_bridge.config import TEST_CONVERGENCE, TRAIN_CONVERGENCE, FoamEnvConfig
 from foam_bridge.grid import GridCell, write_grid_csv
+from foam_bridge.logparse import solver_cost
 from jaxsimrl.cli.main import main
 from jaxsimrl.envs.foam_config import foam_config_from_json, foam_config_to_json
-from jaxsimrl.evaluation.foam_cost import solver_cost
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 #: The run's case: SIMPLEC with k/omega 0.8 as the paper's code; a low cap keeps random runs short.
@@ -211,10 +211,11 @@ class ScriptedBackend:
 
 
 def _scripted(monkeypatch, backend, lengths, pool):
+    from foam_bridge import episodes
     from jaxsimrl.evaluation import foam_runner
     from jaxsimrl.evaluation.foam_controllers import ConstantController
 
-    monkeypatch.setattr(foam_runner, "make_backend", lambda *args: backend)
+    monkeypatch.setattr(episodes, "make_backend", lambda *args: backend)
     jobs = [foam_runner.Job(uid, "c", "h", 50.0, 0) for uid in range(len(lengths))]
     return foam_runner.run_episodes(FoamEnvConfig(), jobs, {"c": ConstantController("c", (0.9, 0.8))}, pool)
 
@@ -380,7 +381,7 @@ def test_eval_writes_its_files_and_one_run_per_deterministic_cell(evaluation):
 def test_best_constant_is_the_grids_best_and_matches_the_env_run_directly(evaluation, tmp_path):
     from foam_bridge.env import FoamCaseEnv
     from foam_bridge.grid import best_cell, read_grid_csv
-    from jaxsimrl.evaluation.foam_cost import read_solver_cost
+    from foam_bridge.logparse import read_solver_cost
 
     out, report = evaluation
     cells = read_grid_csv(out / "baseline_grid.csv")

@@ -15,9 +15,8 @@ from foam_marks import needs_openfoam
 from foam_bridge.config import FoamEnvConfig, without_convergence_test
 from foam_bridge.confirm import meets
 from foam_bridge.env import FoamCaseEnv
-from foam_bridge.logparse import LogParser
+from foam_bridge.logparse import LogParser, solver_cost
 from jaxsimrl.cli.main import main
-from jaxsimrl.evaluation.foam_cost import solver_cost
 
 HONEST = [(0.95, 0.875)]
 #: alpha_u 0.2 from iteration 100 to 300, then back to 0.95.

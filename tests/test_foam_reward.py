@@ -1,8 +1,8 @@
 """The cost-aware rewards (FoamEnvConfig.reward): linear-solver iterations and solver CPU time.
 
 The env's incremental parser counts the costs as the solver prints them; the tests check them against
-an independent reading of the whole log (jaxsimrl.evaluation.foam_cost) after real simpleFoam runs on the
-coarse mesh (mesh_scale 0.4, a few seconds each).
+an independent reading of the whole log (foam_bridge.logparse.read_solver_cost) after real simpleFoam
+runs on the coarse mesh (mesh_scale 0.4, a few seconds each).
 """
 
 from __future__ import annotations
@@ -17,9 +17,8 @@ from foam_marks import needs_openfoam
 from foam_bridge import episode_case
 from foam_bridge.config import U_REF, FoamEnvConfig, cost_per_iteration, failure_reward
 from foam_bridge.env import FoamCaseEnv
-from foam_bridge.logparse import LogParser
+from foam_bridge.logparse import LogParser, read_solver_cost
 from jaxsimrl.agents.ppo.losses import compute_gae
-from jaxsimrl.evaluation.foam_cost import read_solver_cost
 
 BEST = (0.95, 0.95)
 

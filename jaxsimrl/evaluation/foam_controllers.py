@@ -20,27 +20,20 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from foam_bridge.episodes import ConstantFactors
+
 if TYPE_CHECKING:  # only a type: the controllers themselves need no JAX
     from jaxsimrl.policy import BatchActor
 
 
-class ConstantController:
-    """The same factors (alpha_u, alpha_p[, alpha_t]) at every step."""
+class ConstantController(ConstantFactors):
+    """The same factors (alpha_u, alpha_p[, alpha_t]) at every step (the pool's ConstantFactors, named)."""
 
     repeats = False
 
     def __init__(self, name: str, factors: Sequence[float]) -> None:
+        super().__init__(factors)
         self.name = name
-        self.factors = np.asarray(factors, np.float64).reshape(-1)
-
-    def begin(self, uid: int) -> None:
-        pass
-
-    def act(self, uids: Sequence[int], obs: np.ndarray, steps: Sequence[int]) -> np.ndarray:
-        return np.tile(self.factors, (len(uids), 1))
-
-    def end(self, uid: int) -> None:
-        pass
 
 
 class RandomController:

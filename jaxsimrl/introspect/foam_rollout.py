@@ -1,7 +1,7 @@
 """Roll a train-foam policy out on real simpleFoam episodes, one tidy row per step.
 
-The episodes run through eval-foam's machinery: :func:`jaxsimrl.evaluation.foam_runner.run_episodes`
-(a pool of simpleFoam workers, one episode per slot, each reset at its own inlet velocity) with a
+The episodes run on foam_bridge's episode pool (:func:`foam_bridge.episodes.run_episodes`: simpleFoam
+workers, one episode per slot, each reset at its own inlet velocity and seeded by its index) with a
 :class:`jaxsimrl.evaluation.foam_controllers.LearnedController` on a :class:`jaxsimrl.policy.BatchActor`:
 the policy's mean action (as eval-foam's learned_deterministic), or a sample keyed by (seed, episode
 index, step), so a sampled episode does not depend on the pool size or on the other episodes.
@@ -26,8 +26,8 @@ from typing import Any
 import numpy as np
 
 from foam_bridge.config import FoamEnvConfig
+from foam_bridge.episodes import EpisodeJob, run_episodes
 from jaxsimrl.evaluation.foam_controllers import LearnedController
-from jaxsimrl.evaluation.foam_runner import Job, run_episodes
 from jaxsimrl.policy import BatchActor
 
 #: The controller name the rollout's episodes run under.
@@ -42,9 +42,10 @@ def foam_rollout(policy: Any, env_params: FoamEnvConfig | None = None, steps: in
     mesh_scale=0.4)``), on ``pool`` workers. The policy acts in its training box whatever the config's."""
     cfg = _check(policy, env_params, steps, episodes, velocities, pool)
     plan = [(v, sample) for v in _velocities(velocities) for sample in range(episodes)]
-    jobs = [Job(uid, CONTROLLER, "rollout", v, sample) for uid, (v, sample) in enumerate(plan)]
-    controller = _controller(policy, min(pool, len(jobs)), deterministic, seed)
-    results = run_episodes(cfg, jobs, {CONTROLLER: controller}, pool)
+    controller = _controller(policy, min(pool, len(plan)), deterministic, seed)
+    jobs = [EpisodeJob(uid, controller, seed=uid, options={"inlet_velocity": v}, tag=v)
+            for uid, (v, _) in enumerate(plan)]
+    results = run_episodes(cfg, jobs, pool, prefix="foam_eval_")
     return _record(policy, results, tuple(cfg.convergence))
 
 
@@ -79,7 +80,7 @@ def _record(policy: Any, results: Sequence[Any], fields: tuple[str, ...]) -> dic
         before = 0
         values = _values(policy, [step.obs for step in result.trace])
         for t, step in enumerate(result.trace):
-            row = {"episode": episode, "velocity": result.job.velocity, "step": t, "obs": step.obs,
+            row = {"episode": episode, "velocity": result.job.tag, "step": t, "obs": step.obs,
                    "action": step.action, "value": values[t], "iterations_before": before,
                    "iterations": step.iterations, "reward": step.reward, "outcome": step.outcome}
             row.update({f"residual.{name}": step.residuals.get(name, np.nan) for name in fields})
