@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import shutil
 import stat
 from pathlib import Path
 
 import numpy as np
 import pytest
+from foam_marks import needs_openfoam
 from foamlib import FoamFile
 
 from foam_bridge import base_case, episode_case, template
@@ -23,7 +23,6 @@ from foam_bridge.errors import OpenFOAMNotFoundError
 from foam_bridge.foamdict import expand
 from foam_bridge.openfoam import find_openfoam
 
-needs_openfoam = pytest.mark.skipif(shutil.which("blockMesh") is None, reason="OpenFOAM not on PATH")
 H = STEP_HEIGHT_H
 
 
@@ -48,7 +47,6 @@ def test_mesh_parameters_scale_cell_counts_and_deepen_only_the_step() -> None:
     assert deep["nyStep"] == 48 and deep["nyChannel"] == 32  # step blocks keep their cell size
 
 
-@pytest.mark.openfoam
 @needs_openfoam
 @pytest.mark.parametrize("mesh_scale, cells", [(0.25, 1264), (0.4, 3276), (1.0, 20540)])
 def test_mesh_scale_changes_the_cell_count(tmp_path: Path, mesh_scale: float, cells: int) -> None:
@@ -56,7 +54,6 @@ def test_mesh_scale_changes_the_cell_count(tmp_path: Path, mesh_scale: float, ce
     assert template.cell_count(tmp_path / "base") == cells
 
 
-@pytest.mark.openfoam
 @needs_openfoam
 def test_double_step_height_moves_only_the_floor_behind_the_step(tmp_path: Path) -> None:
     openfoam = find_openfoam()
@@ -78,7 +75,6 @@ def test_double_step_height_moves_only_the_floor_behind_the_step(tmp_path: Path)
     assert step_face[:, 1].min() == pytest.approx(-H) and step_face[:, 1].max() == pytest.approx(9 * H)
 
 
-@pytest.mark.openfoam
 @needs_openfoam
 def test_episode_case_dictionaries_as_openfoam_reads_them(tmp_path: Path) -> None:
     cfg = FoamEnvConfig(mesh_scale=0.25, interval=50, max_iterations=300, convergence=dict(TEST_CONVERGENCE))

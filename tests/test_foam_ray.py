@@ -38,7 +38,8 @@ def rollout(backend: str, work_dir) -> dict[str, list]:
 def test_ray_backend_matches_the_local_pool(tmp_path):
     ray = pytest.importorskip("ray")
     local = rollout("local", tmp_path / "local")
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    # "local": a Ray instance of its own, even where another (a cluster test's) runs on the machine
+    ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False)
     try:
         remote = rollout("ray", tmp_path / "ray")
     finally:

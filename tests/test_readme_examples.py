@@ -20,7 +20,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from foam_marks import HAVE_OPENFOAM
+from foam_marks import OPENFOAM
 
 ROOT = Path(__file__).resolve().parent.parent
 PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
@@ -54,8 +54,7 @@ def _params() -> list:
         first = code.strip().splitlines()[0] if code.strip() else "(empty)"
         marks = []
         if _uses_openfoam(code):
-            marks = [pytest.mark.openfoam,
-                     pytest.mark.skipif(not HAVE_OPENFOAM, reason="simpleFoam not on PATH")]
+            marks = list(OPENFOAM)
         if language == "bash":
             marks.append(pytest.mark.skipif(not IN_A_VENV, reason="the tests run outside a virtual env"))
         params.append(pytest.param(language, code, id=f"{where}: {first[:40].rstrip()}", marks=marks))

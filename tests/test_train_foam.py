@@ -125,8 +125,21 @@ def _check_records(run: Path) -> tuple[list[dict], list[dict]]:
     return rows, metrics
 
 
+@pytest.fixture(scope="module")
+def uninterrupted(tmp_path_factory) -> Path:
+    """A TINY run of 8 episodes with seed 3, never interrupted (its own process, as a user runs it): what
+    the killed and resumed run below must equal, and the source network of the --init-from test."""
+    root = tmp_path_factory.mktemp("uninterrupted")
+    run, tmp = root / "run", root / "tmp"
+    tmp.mkdir()
+    process = _train_process(run, tmp, *TINY, "--out", str(run), "--episodes", "8", "--seed", "3")
+    out, err = process.communicate(timeout=600)
+    assert process.returncode == 0, err
+    return run
+
+
 @needs_openfoam
-def test_sigkill_then_resume_leaves_no_solver_and_no_duplicate(tmp_path):
+def test_sigkill_then_resume_leaves_no_solver_and_no_duplicate(tmp_path, uninterrupted):
     run, tmp = tmp_path / "run", tmp_path / "tmp"
     tmp.mkdir()
     process = _train_process(run, tmp, *TINY, "--out", str(run), "--episodes", "6", "--seed", "3")
@@ -162,13 +175,9 @@ def test_sigkill_then_resume_leaves_no_solver_and_no_duplicate(tmp_path):
     assert 0 < summary["pool_utilisation"] <= 1 and summary["episodes_per_hour"] > 0
     assert _no_solver_left(tmp)
     # the episodes in flight were replayed, so killed + resumed is the run that was never interrupted
-    reference = tmp_path / "reference"
-    uninterrupted = _train_process(reference, tmp, *TINY, "--out", str(reference), "--episodes", "8",
-                                   "--seed", "3")
-    assert uninterrupted.wait(timeout=600) == 0
     same = ("env", "seed", "steps", "iterations", "outcome", "actions")
     assert [[r[k] for k in same] for r in rows] == [
-        [r[k] for k in same] for r in EpisodeLog.load(reference / "episodes.csv", 10**9).rows]
+        [r[k] for k in same] for r in EpisodeLog.load(uninterrupted / "episodes.csv", 10**9).rows]
 
 
 def test_reward_kind_sets_its_scale_and_is_fixed_on_resume(capsys, tmp_path):
@@ -209,11 +218,10 @@ def test_episodes_csv_of_an_older_version_loads_without_the_cost_columns(tmp_pat
 
 
 @needs_openfoam
-def test_init_from_starts_with_the_other_runs_network_and_refuses_a_mismatch(capsys, tmp_path):
+def test_init_from_starts_with_the_other_runs_network_and_refuses_a_mismatch(capsys, tmp_path, uninterrupted):
     from jaxsimrl.introspect import load_policy
 
-    source, tuned = tmp_path / "source", tmp_path / "tuned"
-    assert main(["train-foam", *TINY, "--episodes", "2", "--seed", "1", "--out", str(source)]) == 0
+    source, tuned = uninterrupted, tmp_path / "tuned"  # a finished TINY run, seed 3 (this run's is 2)
     # a learning rate of ~0 keeps the network where it started: it must be the source's, not a new one
     assert main(["train-foam", *TINY, "--episodes", "2", "--seed", "2", "--lr", "1e-12", "--init-from",
                  str(source), "--out", str(tuned)]) == 0
