@@ -66,7 +66,25 @@ class _InfoBatcher(VectorEnv):
         self.num_envs = num_envs
 
     def add(self, infos: dict[str, Any], info: dict[str, Any], env_id: int) -> dict[str, Any]:
+        _widen(infos, info)
         return self._add_info(infos, info, env_id)
+
+
+def _widen(infos: dict[str, Any], info: dict[str, Any]) -> None:
+    """Widen the arrays of ``infos`` that cannot hold ``info``'s value for their key.
+
+    gymnasium types a key's array by the first env that has it: a solver's record (integer counts) and
+    a record the host wrote for a lost worker (NaN, None) can end in the same step, in either order.
+    """
+    for key, value in info.items():
+        array = infos.get(key)
+        if isinstance(value, dict) and isinstance(array, dict):
+            _widen(array, value)
+        elif isinstance(array, np.ndarray) and array.ndim == 1 and array.dtype != object:
+            if isinstance(value, float | np.floating) and array.dtype.kind in "biu":
+                infos[key] = array.astype(np.float64)
+            elif not isinstance(value, int | float | bool | np.number):
+                infos[key] = array.astype(object)
 
 
 @dataclass

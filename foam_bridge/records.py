@@ -71,11 +71,13 @@ class EpisodeRecord:
     def to_json(self) -> dict[str, Any]:
         """The record as ``info["episode"]`` (the optional entries only where known)."""
         out: dict[str, Any] = {
-            "outcome": self.outcome, "cause": self.cause, "iterations": self.iterations, "seed": self.seed,
-            "inlet_velocity": self.inlet_velocity, "step_height": self.step_height,
-            "actions": [list(a) for a in self.actions], "return": self.episode_return, "steps": self.steps,
-            "linear_iterations": self.linear_iterations, "solver_time_s": self.solver_time_s,
-            "wall_time_s": self.wall_time_s, "solver_idle_s": self.solver_idle_s,
+            "outcome": self.outcome, "cause": self.cause, "iterations": int(self.iterations),
+            "seed": self.seed, "inlet_velocity": float(self.inlet_velocity),
+            "step_height": float(self.step_height), "actions": [list(a) for a in self.actions],
+            "return": float(self.episode_return), "steps": self.steps,
+            # floats always (a solver's count is an int): batched infos type a key by its first env
+            "linear_iterations": float(self.linear_iterations), "solver_time_s": float(self.solver_time_s),
+            "wall_time_s": float(self.wall_time_s), "solver_idle_s": float(self.solver_idle_s),
             "residuals": dict(self.residuals)}
         for name in ("env_id", "node", "confirmations"):
             if getattr(self, name) is not None:

@@ -82,3 +82,28 @@ def test_garbled_rows_are_dropped(broken):
     rows = read_rows(f"{header}\n{good}\n{broken}\n")
     assert [r["iterations"] for r in rows] == [250]
 
+
+
+@pytest.mark.parametrize("solver_first", [True, False])
+def test_a_solver_record_and_a_lost_worker_record_batch_together_in_either_order(solver_first):
+    """CI caught this after a Ray node loss: the solver's record (integer counts) and the host's record
+    of the lost episode (NaN costs, no seed) ended in the same step, and gymnasium typed the key's array
+    by the first env (``cannot convert float NaN to integer``)."""
+    from foam_bridge.batched import _InfoBatcher
+
+    solver = EpisodeRecord(outcome="converged", iterations=300, seed=7, inlet_velocity=40.0,
+                           linear_iterations=1234, solver_time_s=2.5, actions=[[0.9, 0.5]]).to_json()
+    solver["log"] = {"U": 3}  # an env's own integer extras widen too
+    lost = EpisodeRecord(outcome="crashed", cause="node lost: x", iterations=100, seed=None).to_json()
+    lost["log"] = {"U": "unknown"}
+    order = [(0, solver), (1, lost)] if solver_first else [(1, lost), (0, solver)]
+    infos: dict = {}
+    batcher = _InfoBatcher(2)
+    for env, record in order:
+        infos = batcher.add(infos, {"final_info": {"episode": record}, "iterations": record["iterations"]}, env)
+    episode = infos["final_info"]["episode"]
+    assert episode["linear_iterations"][0] == 1234 and math.isnan(episode["linear_iterations"][1])
+    assert episode["seed"][0] == 7 and episode["seed"][1] is None
+    assert episode["log"]["U"][0] == 3 and episode["log"]["U"][1] == "unknown"
+    assert list(infos["iterations"]) == [300, 100] and list(episode["_outcome"]) == [True, True]
+    assert isinstance(solver["linear_iterations"], float)  # the record's costs are floats in JSON
