@@ -9,15 +9,18 @@ while the normalisation grows: a lower alpha_u lowers the residual the criterion
 the field where it was. On the backward-facing step that is enough to "converge" a run far from the
 solution (experiments/foam/README.md).
 
-The check normalises at one fixed relaxation instead: one SIMPLE iteration from the run's own fields
-(a scratch copy of the case at iteration K, started from its latest time) with alpha_u =
-``confirm_alpha_u``, the step's alpha_p and the step's turbulence factor (the case's, or the step's
-alpha_t when it is an action), whose initial residuals are
-read from its log. The initial U residual of that iteration is computed from the fields of K before
-anything is solved, so the check measures the run's state, not a step of its own. It passes when the
-fields whose residual alpha_u normalises (:func:`_checked_fields`) meet the criterion. Measured on the
-full mesh (test criterion): runs with alpha_u near 0.95 read 0.83-0.88 x their own U residual at
-0.9; random factors that met the criterion read 1.3-6.7 x the threshold (experiments/foam/README.md).
+The check normalises at one fixed relaxation instead: one SIMPLE iteration from the run's own fields (a
+scratch copy of the case at iteration K, started from its latest time) with alpha_u =
+``confirm_alpha_u``, the step's alpha_p and the case's turbulence factor, whose initial residuals are
+read from its log. When the turbulence factor is an action (alpha_t), the agent can move the k/omega
+residuals the same way: the check then relaxes them at ``confirm_alpha_u`` too and checks them. A policy
+trained with the step's alpha_t in the check learned to drop alpha_t to ~0.3 on its last step
+(experiments/controller/README.md). The initial U residual of that iteration is computed from the fields
+of K before anything is solved, so the check measures the run's state, not a step of its own. It passes
+when the fields whose normalisation the agent moves (:func:`_checked_fields`) meet the criterion.
+Measured on the full mesh (test criterion): runs with alpha_u near 0.95 read 0.83-0.88 x their own U
+residual at 0.9; random factors that met the criterion read 1.3-6.7 x the threshold
+(experiments/foam/README.md).
 
 A check and a restart read the fields the solver wrote, so a user's case is then written with
 ``writePrecision 17`` (its own format): rounded fields would read as residuals of their own.
@@ -33,7 +36,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from foam_bridge import episode_case
-from foam_bridge.config import FOLLOW_ALPHA_U, FoamEnvConfig
+from foam_bridge.config import FOLLOW_ALPHA_U, K_OMEGA_ACTION, FoamEnvConfig
 from foam_bridge.logparse import LogParser, field_residual
 from foam_bridge.openfoam import OpenFOAM
 from foam_bridge.solver import run_to_end
@@ -75,25 +78,29 @@ def meets(cfg: FoamEnvConfig, residuals: dict[str, float], fields: Sequence[str]
     return bool(solved) and all(residuals[name] <= cfg.convergence[name] for name in solved)
 
 
-def _checked_fields(cfg: FoamEnvConfig) -> tuple[str, ...]:
-    """The fields whose residual alpha_u normalises: the velocity, and the turbulence fields when they
-    follow alpha_u. The others (p, turbulence at a fixed factor) the solver's own test has met already;
-    re-reading them after a change of alpha_u measures the change, not the run (on airFoil2D, plain
+def _checked_fields(cfg: FoamEnvConfig, turbulence: Sequence[str] | None = None) -> tuple[str, ...]:
+    """The fields whose normalisation the agent moves: the velocity, and the turbulence fields
+    (``turbulence``, default ``cfg.turbulence_fields``) when they follow alpha_u or alpha_t is an
+    action. The others (p, turbulence at the case's factor) the solver's own test has met already;
+    re-reading them after a change of relaxation measures the change, not the run (on airFoil2D, plain
     SIMPLE, p reads 5.7e-2 at alpha_u 0.9 from fields converged to 1e-6 at 0.7)."""
-    following = cfg.k_omega_relaxation == FOLLOW_ALPHA_U
-    return (cfg.velocity_field, *(cfg.turbulence_fields if following else ()))
+    if cfg.k_omega_relaxation not in (FOLLOW_ALPHA_U, K_OMEGA_ACTION):
+        return (cfg.velocity_field,)
+    return (cfg.velocity_field, *(cfg.turbulence_fields if turbulence is None else turbulence))
 
 
 def confirm(episode: Path, base: Path, cfg: FoamEnvConfig, openfoam: OpenFOAM, iteration: int,
             alpha_p: float, solver_residuals: dict[str, float], flat: bool = False,
             alpha_t: float | None = None, turbulence: Sequence[str] | None = None) -> Confirmation:
     """Check the fields the episode case wrote at ``iteration`` at alpha_u = ``cfg.confirm_alpha_u``
-    (``flat``: the case's relaxationFactors use the old flat layout; ``alpha_t``: the step's turbulence
-    factor when it is an action, relaxing the ``turbulence`` fields, see case.relaxation_text)."""
+    (``flat``: the case's relaxationFactors use the old flat layout; ``turbulence``: the fields alpha_t
+    relaxes when it is an action, see case.relaxation_text; they are checked at ``confirm_alpha_u``,
+    whatever the step's ``alpha_t`` was, which is only accepted for the callers' symmetry)."""
     assert cfg.confirm_alpha_u is not None
     started = time.monotonic()
     scratch = episode.parent / CHECK_DIR
-    text = episode_case.relaxation_text(cfg, cfg.confirm_alpha_u, alpha_p, flat, alpha_t, turbulence)
+    fixed_t = cfg.confirm_alpha_u if cfg.k_omega_relaxation == K_OMEGA_ACTION else alpha_t
+    text = episode_case.relaxation_text(cfg, cfg.confirm_alpha_u, alpha_p, flat, fixed_t, turbulence)
     parser = LogParser(episode_case.CELLS_FUNCTION, episode_case.INLET_FUNCTION, cfg.divergence_threshold)
     error = ""
     try:
@@ -108,6 +115,6 @@ def confirm(episode: Path, base: Path, cfg: FoamEnvConfig, openfoam: OpenFOAM, i
     first = parser.history[0] if parser.history else {}
     found = {name: field_residual(first, name) for name in cfg.convergence}
     residuals = {name: float(value) for name, value in found.items() if value is not None}
-    passed = not error and meets(cfg, residuals, _checked_fields(cfg))
+    passed = not error and meets(cfg, residuals, _checked_fields(cfg, turbulence))
     return Confirmation(iteration, passed, residuals, dict(solver_residuals),
                         time.monotonic() - started, error)

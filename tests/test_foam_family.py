@@ -14,7 +14,7 @@ from foamlib import FoamFile
 
 from foam_bridge import episode_case, template
 from foam_bridge.config import STEP_HEIGHT_H, FoamEnvConfig
-from foam_bridge.confirm import confirm
+from foam_bridge.confirm import _checked_fields, confirm, meets
 from foam_bridge.env import FoamCaseEnv, observation_spec
 
 H, H2 = STEP_HEIGHT_H, 2 * STEP_HEIGHT_H
@@ -68,21 +68,26 @@ def test_alpha_t_reaches_the_solver(tmp_path):
 
 
 @needs_openfoam
-def test_the_convergence_check_uses_the_steps_alpha_t(tmp_path):
-    """A 3-action episode at alpha_t 0.8 is the 2-action one with k/omega fixed at 0.8, check included;
-    the check of the same fields at another alpha_t reads other k/omega residuals."""
+def test_the_convergence_check_reads_k_and_omega_at_its_own_fixed_factor(tmp_path):
+    """With alpha_t an action the agent moves the k/omega residuals the criterion reads, as alpha_u moves
+    U's: the check relaxes k and omega at confirm_alpha_u, whatever the step's alpha_t, and checks them.
+    A 3-action episode at alpha_t 0.9 checks the same residuals as the 2-action one with k/omega fixed
+    at 0.9 (there only U is checked: the case's factor is not the agent's)."""
     cfg = _cfg(tmp_path / "three", relax_k_omega="action", confirm_alpha_u=0.9)
     with FoamCaseEnv(cfg) as env:
-        record = _episode(env, (0.95, 0.875, 0.8))
+        record = _episode(env, (0.95, 0.875, 0.9))
         check = record["confirmations"][-1]
-        other = confirm(env.case_dir, env.base, env.cfg, env.openfoam, check["iteration"], 0.875, {},
-                        alpha_t=0.3)
-    with FoamCaseEnv(_cfg(tmp_path / "two", relax_k_omega=0.8, confirm_alpha_u=0.9)) as env:
+        low, high = (confirm(env.case_dir, env.base, env.cfg, env.openfoam, check["iteration"], 0.875, {},
+                             alpha_t=alpha_t, turbulence=("k", "omega")) for alpha_t in (0.3, 0.95))
+    with FoamCaseEnv(_cfg(tmp_path / "two", relax_k_omega=0.9, confirm_alpha_u=0.9)) as env:
         two = _episode(env, (0.95, 0.875))
-    assert record["outcome"] == "converged" and record["actions"][0] == [0.95, 0.875, 0.8]
-    assert record["iterations"] == two["iterations"]
+    assert record["outcome"] == "converged" and record["actions"][0] == [0.95, 0.875, 0.9]
+    assert low.residuals == high.residuals == check["residuals"]  # the step's alpha_t does not count
     assert [c["residuals"] for c in record["confirmations"]] == [c["residuals"] for c in two["confirmations"]]
-    assert other.residuals["U"] == check["residuals"]["U"] and other.residuals["k"] != check["residuals"]["k"]
+    assert _checked_fields(cfg, ("k", "omega")) == ("U", "k", "omega")
+    assert _checked_fields(dataclasses.replace(cfg, relax_k_omega=0.9)) == ("U",)
+    # a k residual over the criterion fails the check even when U meets it
+    assert not meets(cfg, {**check["residuals"], "k": 2 * cfg.convergence["k"]}, ("U", "k", "omega"))
 
 
 @needs_openfoam

@@ -100,7 +100,8 @@ def test_a_solver_record_and_a_lost_worker_record_batch_together_in_either_order
     infos: dict = {}
     batcher = _InfoBatcher(2)
     for env, record in order:
-        infos = batcher.add(infos, {"final_info": {"episode": record}, "iterations": record["iterations"]}, env)
+        info = {"final_info": {"episode": record}, "iterations": record["iterations"]}
+        infos = batcher.add(infos, info, env)
     episode = infos["final_info"]["episode"]
     assert episode["linear_iterations"][0] == 1234 and math.isnan(episode["linear_iterations"][1])
     assert episode["seed"][0] == 7 and episode["seed"][1] is None

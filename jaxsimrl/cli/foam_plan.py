@@ -118,6 +118,8 @@ def fresh_plan(args: argparse.Namespace) -> FoamPlan:
     num_envs = args.num_envs or args.pool or 2
     episodes = args.episodes or 2000
     flags = {name: getattr(args, name) for name, _, _ in KNOBS if getattr(args, name) is not None}
+    if args.init_action is not None:
+        flags["init_action"] = tuple(args.init_action)
     try:
         foam = _foam_config(args, extra.get("foam", {}))
         ppo_values = {**foam_ppo_defaults(num_envs, foam.reward), **extra.get("ppo", {}), **flags}
@@ -126,6 +128,7 @@ def fresh_plan(args: argparse.Namespace) -> FoamPlan:
         # the episode target governs the run's length (a total_steps of --config is overridden)
         ppo_values["total_steps"] = total_steps_for(episodes, ppo_values["steps_per_update"], num_envs, foam)
         ppo = PPOConfig.from_dict(ppo_values)
+        _check_init_action(ppo, foam)
         pool = validate_pool(num_envs, args.pool)
     except (TypeError, ValueError) as err:
         raise UsageError(f"invalid config: {err}") from None
@@ -152,6 +155,18 @@ def _check_ray_address(backend: str, address: str | None, run: Path | None = Non
     if address and backend != "ray":
         ran = f" ({run} ran on the {backend} backend: add --backend ray to move it)" if run else ""
         raise UsageError(f"--ray-address needs --backend ray{ran}")
+
+
+def _check_init_action(ppo: Any, foam: Any) -> None:
+    """ValueError unless ``ppo.init_action`` (if set) has one factor per action, each in the env's box."""
+    action = ppo.init_action
+    if action is None:
+        return
+    if len(action) != foam.action_size:
+        raise ValueError(f"init_action: expected {foam.action_size} factors, got {len(action)}")
+    if any(not lo <= a <= hi for a, lo, hi in zip(action, foam.action_low, foam.action_high, strict=True)):
+        raise ValueError(f"init_action: {list(action)} is outside the action box "
+                         f"[{list(foam.action_low)}, {list(foam.action_high)}]")
 
 
 def _carry_policy_settings(policy: Any, ppo: Any, given: set[str]) -> Any:
@@ -264,7 +279,7 @@ def resume_plan(args: argparse.Namespace) -> FoamPlan:
     from jaxsimrl.runs.run_dir import RunDir
 
     fixed = ["config", "num_envs", "mesh_scale", "step_height", "max_iterations", "case", "reward", "seed",
-             "out", "init_from", "confirm_alpha_u", "relax_k_omega", *OBSERVATION_FLAGS]
+             "out", "init_from", "init_action", "confirm_alpha_u", "relax_k_omega", *OBSERVATION_FLAGS]
     changed = [name for name in fixed + [k for k, _, _ in KNOBS] if getattr(args, name) is not None]
     if changed:
         flag = "--" + changed[0].replace("_", "-")

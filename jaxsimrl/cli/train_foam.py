@@ -73,6 +73,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--ray-address", help="address of a running Ray cluster (with --backend ray)")
     for name, kind, text in KNOBS:
         p.add_argument("--" + name.replace("_", "-"), dest=name, type=kind, metavar="X", help=text)
+    p.add_argument("--init-action", type=float, nargs="+", metavar="A", help="the factors the initial "
+                   "policy's mean maps to, one per action (default: the box centre), e.g. a constant that "
+                   "grid-foam found good for the training family; exploration starts around it")
     p.add_argument("--config", metavar="FILE.json", help='a JSON object {"ppo": {PPOConfig fields}, "foam": '
                    '{FoamEnvConfig fields}} applied after the defaults and before the flags')
     p.add_argument("--seed", type=seed_type(31), help="PRNG seed (default 0): network, actions and episode "

@@ -61,6 +61,9 @@ class PPOConfig:
     # The tanh squash maps onto the action box widened by this fraction of its width on each side, and
     # actions are clipped into the box: 0 = plain tanh (bounds approached, never reached).
     action_margin: float = 0.0
+    # The action the initial policy's mean maps to (one entry per action; None: the box centre). A
+    # solver controller can start from a known good constant and learn where to leave it.
+    init_action: tuple[float, ...] | None = None
     updates_per_chunk: int = 5  # updates per jitted run_chunk call (progress / checkpoint granularity)
 
     # ---- derived sizes -------------------------------------------------------------------------
@@ -126,6 +129,7 @@ class PPOConfig:
         """A JSON-ready dict (tuples become lists)."""
         out = dataclasses.asdict(self)
         out["hidden_sizes"] = list(self.hidden_sizes)
+        out["init_action"] = None if self.init_action is None else list(self.init_action)
         return out
 
     @classmethod
@@ -143,6 +147,8 @@ class PPOConfig:
             if not isinstance(sizes, list | tuple):
                 raise ValueError(f"hidden_sizes must be a list of positive ints, got {sizes!r}")
             values["hidden_sizes"] = tuple(sizes)
+        if isinstance(values.get("init_action"), list):
+            values["init_action"] = tuple(values["init_action"])
         return cls(**values).validate()
 
 
@@ -171,6 +177,9 @@ _FIELD_RULES: tuple[tuple[tuple[str, ...], Callable[[Any], bool], str], ...] = (
      and all(_is_int(h) and h > 0 for h in v), "a non-empty list of positive ints"),
     (("init_log_std",), lambda v: _is_number(v) and -10 <= v <= 2, "a number in [-10, 2]"),
     (("action_margin",), lambda v: _is_number(v) and 0 <= v <= 0.5, "a number in [0, 0.5]"),
+    (("init_action",), lambda v: v is None or (isinstance(v, tuple | list) and bool(v)
+                                               and all(_is_number(a) for a in v)),
+     "null or a list of numbers"),
     (("anneal_lr", "clip_value", "normalize_advantages", "normalize_obs"), lambda v: isinstance(v, bool),
      "true or false"),
 )

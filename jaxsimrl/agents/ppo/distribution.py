@@ -61,6 +61,17 @@ def to_box(u: jax.Array, low: jax.Array, high: jax.Array, margin: float = 0.0) -
     return jnp.clip(lo + (jnp.tanh(u) + 1.0) * 0.5 * (hi - lo), low, high)
 
 
+def from_box(action: np.ndarray, low: np.ndarray, high: np.ndarray, margin: float = 0.0) -> np.ndarray:
+    """The pre-squash ``u`` that :func:`to_box` maps to ``action`` (numpy; an action on a bound that
+    plain tanh cannot reach maps to |tanh(u)| = 0.999)."""
+    lo, hi = (np.asarray(b, np.float64) for b in widened(np.asarray(low, np.float64),
+                                                        np.asarray(high, np.float64), margin))
+    if np.any(action < np.asarray(low) - 1e-6) or np.any(action > np.asarray(high) + 1e-6):
+        raise ValueError(f"init_action: {np.asarray(action).tolist()} is outside the action box "
+                         f"[{np.asarray(low).tolist()}, {np.asarray(high).tolist()}]")
+    return np.arctanh(np.clip(2.0 * (action - lo) / (hi - lo) - 1.0, -0.999, 0.999))
+
+
 def sample(key: jax.Array, mean: jax.Array, log_std: jax.Array) -> tuple[jax.Array, jax.Array]:
     """Sample the pre-squash ``u`` and return it with its Gaussian log-probability."""
     return gaussian(mean, log_std).sample_and_log_prob(seed=key)

@@ -58,6 +58,7 @@ class ActorCritic(nn.Module):
     recurrent: bool = True
     activation: str = "tanh"
     init_log_std: float = -0.5
+    init_mean: tuple[float, ...] | None = None  # the mean head's initial bias (pre-squash), zeros if None
 
     @nn.compact
     def __call__(self, carry: Carry, obs: jax.Array, starts: jax.Array
@@ -69,19 +70,22 @@ class ActorCritic(nn.Module):
             x = act(nn.Dense(size, kernel_init=nn.initializers.orthogonal(np.sqrt(2)))(x))
         if self.recurrent:
             carry, x = ResetLSTM(self.lstm_size)(carry, (x, starts))
-        mean = nn.Dense(self.action_dim, kernel_init=nn.initializers.orthogonal(0.01),
-                        bias_init=nn.initializers.zeros)(x)
+        bias = (nn.initializers.zeros if self.init_mean is None
+                else nn.initializers.constant(np.asarray(self.init_mean, np.float32)))
+        mean = nn.Dense(self.action_dim, kernel_init=nn.initializers.orthogonal(0.01), bias_init=bias)(x)
         log_std = self.param("log_std", nn.initializers.constant(self.init_log_std), (self.action_dim,))
         value = nn.Dense(1, kernel_init=nn.initializers.orthogonal(1.0),
                          bias_init=nn.initializers.zeros)(x)[..., 0]
         return carry, mean, log_std, value
 
 
-def make_network(config: PPOConfig, action_dim: int) -> ActorCritic:
-    """The actor-critic described by ``config``."""
+def make_network(config: PPOConfig, action_dim: int, init_mean: Sequence[float] | None = None
+                 ) -> ActorCritic:
+    """The actor-critic described by ``config`` (``init_mean``: the mean head's initial bias)."""
     return ActorCritic(action_dim=action_dim, hidden_sizes=tuple(config.hidden_sizes),
                        lstm_size=config.lstm_size, recurrent=config.network == "lstm",
-                       activation=config.activation, init_log_std=config.init_log_std)
+                       activation=config.activation, init_log_std=config.init_log_std,
+                       init_mean=None if init_mean is None else tuple(float(m) for m in init_mean))
 
 
 def initial_carry(config: PPOConfig, batch_size: int) -> Carry:

@@ -62,7 +62,16 @@ class Policy:
         self.config = config
         self.box = box if isinstance(box, ActionBox) else ActionBox.of_env(box, env_params)
         self.low, self.high = self.box
-        self.network = make_network(config, int(np.prod(self.low.shape)))
+        size = int(np.prod(self.low.shape))
+        init_mean = None
+        if config.init_action is not None:
+            if len(config.init_action) != size:
+                raise ValueError(f"init_action: expected {size} entries (one per action), got "
+                                 f"{list(config.init_action)}")
+            wanted = np.asarray(config.init_action, np.float64)
+            init_mean = distribution.from_box(wanted, np.asarray(self.low), np.asarray(self.high),
+                                              config.action_margin)
+        self.network = make_network(config, size, init_mean)
 
     def initial_carry(self, batch_size: int) -> Carry:
         return initial_carry(self.config, batch_size)
