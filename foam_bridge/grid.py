@@ -9,6 +9,12 @@ iterations annotated in every cell, crashed and non-converged cells hatched and 
 cell framed). A 3-D grid (``alpha_t`` given) has an ``alpha_t`` column after ``alpha_p`` (GRID_COLUMNS_3D)
 and one heatmap per alpha_t (:func:`plot_grid_slices`); read_grid_csv reads both kinds.
 
+A grid over several conditions (``run_grid(..., conditions=[(step_height, inlet_velocity), ...])``)
+runs every factor cell on every condition, on one pool (each job reset with its condition). Cells of
+run_grid carry their condition and the iteration cap: grid.csv then starts with ``step_height`` and
+``inlet_velocity`` and ends with ``max_iterations`` (CONDITION_COLUMNS); files without them still load
+(their cells have None there).
+
 Cells whose episode ends with a failure keep the iteration count at which it happened ("crash @ K");
 a cell that hit ``max_iterations`` is shown as ">K". The action box of the config is widened to the
 grid so that constant factors are never clipped.
@@ -32,13 +38,17 @@ from foam_bridge.atomic import atomic_write_bytes, atomic_write_text
 from foam_bridge.config import K_OMEGA_ACTION, FoamEnvConfig
 from foam_bridge.episodes import EpisodeJob, EpisodeRun, check_pool, run_episodes
 
-__all__ = ["GRID_COLUMNS", "GRID_COLUMNS_3D", "GRID_SEED", "LEGEND_HEIGHT_IN", "MIN_FIGURE_WIDTH_IN",
-           "TITLE_FONTSIZE", "GridCell", "best_cell", "cell_label", "check_factors",
-           "grid_config", "heatmap_figure", "plot_grid", "plot_grid_slices", "read_grid_csv", "run_grid",
-           "write_grid_csv"]
+__all__ = ["CONDITION_COLUMNS", "GRID_COLUMNS", "GRID_COLUMNS_3D", "GRID_SEED", "LEGEND_HEIGHT_IN",
+           "MIN_FIGURE_WIDTH_IN", "TITLE_FONTSIZE", "Condition", "GridCell", "best_cell", "cell_label",
+           "check_factors", "grid_config", "heatmap_figure", "plot_grid", "plot_grid_slices", "read_grid_csv",
+           "run_grid", "write_grid_csv"]
 
 GRID_COLUMNS = ("alpha_u", "alpha_p", "iterations", "outcome", "wall_time_s")
 GRID_COLUMNS_3D = ("alpha_u", "alpha_p", "alpha_t", "iterations", "outcome", "wall_time_s")
+#: The columns a grid with conditions adds: the first two before the factors, the cap at the end.
+CONDITION_COLUMNS = ("step_height", "inlet_velocity", "max_iterations")
+#: (step height in m, inlet velocity in m/s) of a grid's case; None: the config's (a range or the case's).
+Condition = tuple[float | None, float | None]
 TITLE_FONTSIZE = 10
 MIN_FIGURE_WIDTH_IN = 6.0
 LEGEND_HEIGHT_IN = 0.35
@@ -56,6 +66,14 @@ class GridCell:
     wall_time_s: float
     cause: str = ""
     alpha_t: float | None = None  # the k/omega factor of a 3-D grid; None: the config's fixed one
+    step_height: float | None = None  # the cell's condition; None: not recorded (older grid.csv files)
+    inlet_velocity: float | None = None
+    max_iterations: int | None = None  # the cap the cell ran under; None: not recorded
+
+    @property
+    def condition(self) -> Condition:
+        """(step_height, inlet_velocity) of the cell's case."""
+        return self.step_height, self.inlet_velocity
 
     @property
     def factors(self) -> tuple[float, ...]:
@@ -98,50 +116,77 @@ def run_grid(
     work_dir: str | os.PathLike[str] | None = None,
     on_cell: Callable[[GridCell], None] | None = None,
     alpha_t: Sequence[float] | None = None,
+    conditions: Sequence[Condition] | None = None,
 ) -> list[GridCell]:
     """Run every (alpha_u, alpha_p) pair (every triple with ``alpha_t``, the k/omega factor) with
-    constant factors on the episode pool; cells come back in row-major grid order (alpha_t varying
-    fastest)."""
+    constant factors on the episode pool, on every (step_height, inlet_velocity) of ``conditions``
+    (default: the config's own case, reset without options); cells come back condition by condition,
+    each in row-major grid order (alpha_t varying fastest)."""
     alpha_u, alpha_p = check_factors(alpha_u, "alpha_u"), check_factors(alpha_p, "alpha_p")
     alpha_t = None if alpha_t is None else check_factors(alpha_t, "alpha_t")
     check_pool(pool)
     cfg = grid_config(cfg, alpha_u, alpha_p, alpha_t).with_absolute_paths()  # workers need no shared cwd
     thirds = [(a,) for a in alpha_t] if alpha_t else [()]
     pairs = [(u, p, *t) for u in alpha_u for p in alpha_p for t in thirds]
-    jobs = [EpisodeJob(index, factors, seed=GRID_SEED) for index, factors in enumerate(pairs)]
+    cases = [(_own_condition(cfg), None)] if conditions is None else \
+        [(c, {"step_height": c[0], "inlet_velocity": c[1]}) for c in conditions]
+    jobs = [EpisodeJob(len(pairs) * i + j, factors, seed=GRID_SEED, options=options, tag=condition)
+            for i, (condition, options) in enumerate(cases) for j, factors in enumerate(pairs)]
     report = on_cell or (lambda cell: None)
+    cap = cfg.max_iterations
     runs = run_episodes(cfg, jobs, pool, work_dir=work_dir, prefix="foam_grid_",
-                        keep_temporary=cfg.keep_cases, on_result=lambda run: report(_cell(run)))
-    return [_cell(run) for run in runs]
+                        keep_temporary=cfg.keep_cases, on_result=lambda run: report(_cell(run, cap)))
+    return [_cell(run, cap) for run in runs]
 
 
-def _cell(run: EpisodeRun) -> GridCell:
+def _own_condition(cfg: FoamEnvConfig) -> Condition:
+    """The config's (step height, inlet velocity) where each is one value; None where it is not."""
+    height = cfg.fixed_height if cfg.builtin and cfg.height_range is None else None
+    velocity = cfg.inlet_velocity
+    fixed = isinstance(velocity, int | float) and not isinstance(velocity, bool)
+    return height, float(velocity) if fixed else None  # type: ignore[arg-type]
+
+
+def _cell(run: EpisodeRun, cap: int) -> GridCell:
     """The cell of a constant-factor episode; wall time from the episode record if there is one, else
     as the host saw it (reset included)."""
     wall = run.record.wall_time_s if run.record is not None else math.nan
     if math.isnan(wall):
         wall = run.host_wall_s + run.reset_s
     alpha_u, alpha_p, *alpha_t = (float(a) for a in run.job.controller)
+    height, velocity = run.job.tag
     return GridCell(alpha_u, alpha_p, int(run.iterations), run.outcome, float(wall), run.cause,
-                    alpha_t[0] if alpha_t else None)
+                    alpha_t[0] if alpha_t else None, height, velocity, cap)
 
 
 def write_grid_csv(cells: Sequence[GridCell], path: str | os.PathLike[str]) -> None:
-    """``path`` <- one row per cell with GRID_COLUMNS, atomically."""
+    """``path`` <- one row per cell with GRID_COLUMNS (GRID_COLUMNS_3D), atomically; cells that record
+    their condition add CONDITION_COLUMNS (an unknown value is an empty field)."""
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
     three = any(cell.alpha_t is not None for cell in cells)
-    writer.writerow(GRID_COLUMNS_3D if three else GRID_COLUMNS)
+    conditioned = any(cell.condition != (None, None) or cell.max_iterations is not None for cell in cells)
+    head, tail = CONDITION_COLUMNS[:2], CONDITION_COLUMNS[2:]
+    columns = GRID_COLUMNS_3D if three else GRID_COLUMNS
+    writer.writerow((*head, *columns, *tail) if conditioned else columns)
     for cell in cells:
-        writer.writerow((*cell.factors, cell.iterations, cell.outcome, f"{cell.wall_time_s:.3f}"))
+        row = (*cell.factors, cell.iterations, cell.outcome, f"{cell.wall_time_s:.3f}")
+        blank = ["" if v is None else v for v in (*cell.condition, cell.max_iterations)]
+        writer.writerow((*blank[:2], *row, *blank[2:]) if conditioned else row)
     atomic_write_text(path, buffer.getvalue())
 
 
 def read_grid_csv(path: str | os.PathLike[str]) -> list[GridCell]:
-    """Cells back from a grid.csv (for plotting again or comparing runs; 2-D or 3-D)."""
+    """Cells back from a grid.csv (for plotting again or comparing runs; 2-D or 3-D, with or without
+    conditions)."""
+    def number(row: dict[str, str], key: str, kind: Callable[[str], Any] = float) -> Any:
+        return kind(row[key]) if row.get(key) else None
+
     with open(path, newline="") as handle:
         return [GridCell(float(r["alpha_u"]), float(r["alpha_p"]), int(r["iterations"]), r["outcome"],
-                         float(r["wall_time_s"]), alpha_t=float(r["alpha_t"]) if r.get("alpha_t") else None)
+                         float(r["wall_time_s"]), alpha_t=number(r, "alpha_t"),
+                         step_height=number(r, "step_height"), inlet_velocity=number(r, "inlet_velocity"),
+                         max_iterations=number(r, "max_iterations", int))
                 for r in csv.DictReader(handle)]
 
 
@@ -174,11 +219,12 @@ def plot_grid(cells: Sequence[GridCell], path: str | os.PathLike[str], title: st
     atomic_write_bytes(path, buffer.getvalue())
 
 
-def plot_grid_slices(cells: Sequence[GridCell], out: str | os.PathLike[str], title: str = "") -> list[str]:
-    """One heatmap per alpha_t of a 3-D grid, ``out/grid_alpha_t_<value>.png``; returns the file names."""
+def plot_grid_slices(cells: Sequence[GridCell], out: str | os.PathLike[str], title: str = "",
+                     stem: str = "grid") -> list[str]:
+    """One heatmap per alpha_t of a 3-D grid, ``out/<stem>_alpha_t_<value>.png``; returns the file names."""
     names = []
     for alpha_t in sorted({c.alpha_t for c in cells if c.alpha_t is not None}):
-        name = f"grid_alpha_t_{alpha_t:g}.png"
+        name = f"{stem}_alpha_t_{alpha_t:g}.png"
         plot_grid([c for c in cells if c.alpha_t == alpha_t], os.path.join(out, name),
                   f"{title}\nalpha_t (k/omega) = {alpha_t:g}".strip())
         names.append(name)

@@ -239,9 +239,9 @@ def test_runner_stops_on_a_case_the_env_rejects(monkeypatch):
 
 
 def test_an_episode_keeps_its_uid_whatever_else_the_command_evaluates():
-    from jaxsimrl.evaluation.foam_eval import CONTROLLERS, plan
+    from jaxsimrl.evaluation.foam_eval import DEFAULT_CONTROLLERS, plan
 
-    repeats = {c: c in ("learned_stochastic", "random") for c in CONTROLLERS}
+    repeats = {c: c in ("learned_stochastic", "random") for c in DEFAULT_CONTROLLERS}
     small = plan(["h"], [50.0], repeats, 2)
     large = plan(["h", "2h"], [25.0, 50.0, 75.0], repeats, 10)
     assert len(small) == 3 + 2 * 2 and len(large) == 2 * 3 * (3 + 2 * 10)
@@ -266,6 +266,7 @@ BAD_INPUT = {"no_config": "not a run directory", "lorenz": "not a train-foam run
              "no_csv": "cannot read", "twice": "must be distinct",
              "unconverged_csv": "no converged cell", "wrong_obs": "observations of size 1",
              "controller": "invalid choice", "cache_alone": "reference_cache needs reference_iterations",
+             "oracle_axes_alone": "case_oracle controller",
              "cache_file": "exists and is not a directory"}
 
 
@@ -290,6 +291,8 @@ def test_bad_input_is_one_line_exit_2(capsys, tmp_path, saved_run, case):
         extra = ["--baseline-grid", tmp_path / "g.csv"]
     elif case == "controller":
         extra = ["--controllers", "random", "oracle"]
+    elif case == "oracle_axes_alone":
+        extra = ["--oracle-alpha-u", "0.9"]
     elif case == "cache_alone":
         extra = ["--reference-cache", tmp_path / "cache"]
     elif case == "cache_file":
@@ -406,6 +409,38 @@ def test_best_constant_is_the_grids_best_and_matches_the_env_run_directly(evalua
     assert info["outcome"] == run["outcome"] == "converged"
     assert run["iterations"] == info["iterations"]
     assert run["linear_iterations"] == cost.total and run["p_linear_iterations"] == cost.of("p")
+
+
+@needs_openfoam
+def test_the_case_oracle_runs_its_grid_on_the_case_and_keeps_the_best(saved_run, tmp_path, capsys):
+    out = tmp_path / "oracle"
+    code = main(["eval-foam", str(saved_run), "--velocities", str(VELOCITY), "--step-height", "0.0127",
+                 "--mesh-scale", "0.4", "--pool", "2", "--controllers", "case_oracle", "tutorial_defaults",
+                 "--oracle-alpha-u", "0.9", "--oracle-alpha-p", "0.8", "0.95", "--out", str(out)])
+    assert code == 0
+    report = json.loads((out / "eval.json").read_text())
+    assert list(report["results"]) == ["tutorial_defaults", "case_oracle"] and report["baseline"] is None
+    cell = report["results"]["case_oracle"]["h"]["50"]
+    oracle = cell["oracle"]
+    assert [g["factors"] for g in oracle["grid"]] == [[0.9, 0.8], [0.9, 0.95]] and oracle["solver_runs"] == 2
+    assert oracle["simple_iterations"] == sum(g["iterations"] for g in oracle["grid"])
+    # the grid's (0.9, 0.8) cell is the tutorial's own settings on the same case: the same run
+    (defaults,) = report["results"]["tutorial_defaults"]["h"]["50"]["runs"]
+    assert (oracle["grid"][0]["outcome"], oracle["grid"][0]["iterations"]) == (defaults["outcome"],
+                                                                               defaults["iterations"])
+    converged = [g for g in oracle["grid"] if g["outcome"] == "converged"]
+    (run,) = cell["runs"]  # the oracle's result: its grid's fastest converged run
+    expected = min(converged, key=lambda g: g["iterations"]) if converged else oracle["grid"][0]
+    assert oracle["factors"] == expected["factors"] and run["iterations"] == expected["iterations"]
+    assert all(action == expected["factors"] for action in run["actions"])
+    with open(out / "eval.csv", newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    assert Counter(r["controller"] for r in rows) == {"case_oracle": 1, "case_oracle_grid": 1,
+                                                      "tutorial_defaults": 1}
+    assert (out / "box_V50.png").read_bytes()[:8] == PNG_MAGIC
+    printed = capsys.readouterr().out
+    assert f"case oracle h V=50: ({', '.join(f'{f:g}' for f in expected['factors'])}) of a grid of 2 runs" \
+        in printed
 
 
 def _run_directly(cfg, uid, factors, case_copy):

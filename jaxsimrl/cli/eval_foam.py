@@ -20,14 +20,16 @@ from jaxsimrl.cli.errors import fail, positive_float, positive_int, seed_type
 def register(subparsers: Any) -> None:
     """Add the ``eval-foam`` subcommand."""
     from jaxsimrl.cli.foam import add_confirm_argument, relaxation_factor
-    from jaxsimrl.evaluation.foam_eval import CONTROLLERS
+    from jaxsimrl.evaluation.foam_eval import CONTROLLERS, DEFAULT_CONTROLLERS
 
     parser = subparsers.add_parser(
         "eval-foam", help="evaluate a train-foam policy against constant, default and random factors",
         description="The paper's test protocol on RUN_DIR's last checkpoint: inlet velocities 25, 50, "
         "75 m/s, the test criterion, step heights h and 2h, the full mesh. Controllers: the learned policy "
         "(deterministic: one run per cell; stochastic: --samples runs), the best constant factors, the "
-        "tutorial's defaults (U 0.9, p 0.8) and random factors (--samples runs). Every run reports SIMPLE "
+        "tutorial's defaults (U 0.9, p 0.8; k/omega 0.8 with the k/omega action) and random factors "
+        "(--samples runs); on request (--controllers ... case_oracle) the best constant of a grid on each "
+        "test case, with that grid's cost. Every run reports SIMPLE "
         "iterations, wall time and linear-solver iterations, and with --reference-iterations the error of "
         "its final U field against a long reference run.")
     parser.add_argument("run_dir", metavar="RUN_DIR", help="a run directory written by train-foam")
@@ -43,8 +45,9 @@ def register(subparsers: Any) -> None:
                         help="runs per cell of the stochastic policy and of random factors (default 10)")
     parser.add_argument("--baseline-grid", metavar="GRID.csv", type=Path,
                         help="a grid.csv of grid-foam: its converged cell with the fewest iterations is the "
-                        "best constant (default: run a small grid at the first velocity on the first "
-                        "geometry)")
+                        "best constant; of a grid over several conditions, the cell best for that family "
+                        "(lowest geometric mean of iterations / each condition's best) (default: run a small "
+                        "grid at the first velocity on the first geometry)")
     parser.add_argument("--grid-alpha-u", type=relaxation_factor, nargs="+", default=[0.8, 0.9, 0.95],
                         metavar="A", help="alpha_u of that small grid (default 0.8 0.9 0.95)")
     parser.add_argument("--grid-alpha-p", type=relaxation_factor, nargs="+", default=[0.8, 0.9, 0.95],
@@ -52,11 +55,16 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--grid-alpha-t", type=relaxation_factor, nargs="+", default=None, metavar="T",
                         help="alpha_t (k/omega) of that small grid, for a run with the k/omega action "
                         "(default 0.8, the paper's)")
+    for axis, name in (("u", "alpha_u"), ("p", "alpha_p"), ("t", "alpha_t (k/omega)")):
+        parser.add_argument(f"--oracle-alpha-{axis}", type=relaxation_factor, nargs="+", default=None,
+                            metavar="F", help=f"{name} of the case_oracle's grid on every test case "
+                            "(default: the --baseline-grid's, else the small grid's)")
     parser.add_argument("--seed", type=seed_type(), default=0,
                         help="seeds the sampled and random actions (default 0): the same command gives the "
                         "same numbers")
-    parser.add_argument("--controllers", nargs="+", choices=CONTROLLERS, default=list(CONTROLLERS),
-                        metavar="NAME", help=f"the controllers to run (default all: {' '.join(CONTROLLERS)})")
+    parser.add_argument("--controllers", nargs="+", choices=CONTROLLERS, default=list(DEFAULT_CONTROLLERS),
+                        metavar="NAME", help=f"the controllers to run, of {' '.join(CONTROLLERS)} (default: "
+                        f"{' '.join(DEFAULT_CONTROLLERS)}; case_oracle runs a grid per test case)")
     parser.add_argument("--reference-iterations", type=positive_int, metavar="N",
                         help="first run the best constant (else the defaults) for N iterations per geometry "
                         "and velocity, and report each run's U error against it (default: no reference)")
@@ -67,6 +75,10 @@ def register(subparsers: Any) -> None:
     add_confirm_argument(parser)
     parser.add_argument("--out", metavar="DIR", type=Path, help="output directory (default RUN_DIR/eval)")
     parser.set_defaults(func=run_eval_foam)
+
+
+def _tuple(values: list[float] | None) -> tuple[float, ...] | None:
+    return None if values is None else tuple(values)
 
 
 def _check_openfoam() -> None:
@@ -90,7 +102,8 @@ def run_eval_foam(args: argparse.Namespace) -> int:
                     grid_alpha_p=tuple(args.grid_alpha_p), out=args.out,
                     grid_alpha_t=None if args.grid_alpha_t is None else tuple(args.grid_alpha_t),
                     controllers=tuple(args.controllers), reference_iterations=args.reference_iterations,
-                    reference_cache=args.reference_cache, confirm_alpha_u=args.confirm_alpha_u)
+                    reference_cache=args.reference_cache, confirm_alpha_u=args.confirm_alpha_u,
+                    **{f"oracle_alpha_{a}": _tuple(getattr(args, f"oracle_alpha_{a}")) for a in "upt"})
     _check_openfoam()
     with EvalProgress() as progress:
         try:
@@ -98,6 +111,8 @@ def run_eval_foam(args: argparse.Namespace) -> int:
         except ValueError as err:
             fail(str(err))
     progress.console.print(results_table(report))
+    for line in oracle_lines(report):
+        progress.say(line)
     progress.console.print(f"wrote {spec.output_dir}/eval.json, eval.csv and the figures")
     return 0
 
@@ -147,7 +162,8 @@ class EvalProgress:
 LOG_WIDTH = 120
 #: Short controller names for the terminal table.
 SHORT_NAMES = {"learned_deterministic": "learned mean", "learned_stochastic": "learned sampled",
-               "best_constant": "best constant", "tutorial_defaults": "defaults", "random": "random"}
+               "best_constant": "best constant", "tutorial_defaults": "defaults", "random": "random",
+               "case_oracle": "case oracle"}
 
 
 def results_table(report: dict[str, Any]) -> Any:
@@ -172,6 +188,19 @@ def results_table(report: dict[str, Any]) -> Any:
                 row += [_pm(cell["u_error"], 3)] if with_error else []
                 table.add_row(*row, *([str(cell["failed_checks"])] if checked else []))
     return table
+
+
+def oracle_lines(report: dict[str, Any]) -> list[str]:
+    """One line per test case of the case oracle (if it ran): its choice and what its grid cost."""
+    lines = []
+    for geometry, velocities in report["results"].get("case_oracle", {}).items():
+        for velocity, cell in velocities.items():
+            oracle = cell["oracle"]
+            factors = ", ".join(f"{f:g}" for f in oracle["factors"])
+            runs, iterations = oracle["solver_runs"], oracle["simple_iterations"]
+            lines.append(f"case oracle {geometry} V={velocity}: ({factors}) of a grid of {runs} runs, "
+                         f"{iterations:,} SIMPLE iterations, {oracle['wall_time_s']:.0f} s")
+    return lines
 
 
 def _pm(summary: dict[str, Any], digits: int) -> str:

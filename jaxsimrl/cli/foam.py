@@ -5,6 +5,10 @@
 Writes OUT/grid.csv (alpha_u, alpha_p, iterations, outcome, wall_time_s) and OUT/grid.png (heatmap).
 ``--alpha-t A [A ...]`` adds the k/omega factor as a third axis: grid.csv gains an alpha_t column and
 there is one heatmap per alpha_t, OUT/grid_alpha_t_<A>.png.
+Several ``--step-height`` and/or ``--inlet-velocity`` values run every factor cell on every (height,
+velocity) condition: grid.csv gains step_height, inlet_velocity (and max_iterations) columns, the
+heatmaps are per condition (OUT/grid_<geometry>_V<v>[_alpha_t_<A>].png) and OUT/family_best.json holds
+the cell best for the family (jaxsimrl.evaluation.family) and the grid's cost; one line sums it up.
 Bad input (factor outside (0, 1], empty list, bad mesh scale, pool < 1, OUT an existing file, OpenFOAM
 missing) is one line on stderr and exit code 2.
 """
@@ -12,6 +16,7 @@ missing) is one line on stderr and exit code 2.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 from pathlib import Path
 from typing import Any
@@ -84,14 +89,16 @@ def register(subparsers: Any) -> None:
                         help=f"mesh resolution factor (1.0 = 20,540 cells; default 1.0). Use >= "
                         f"{MESH_SCALE_USABLE_MIN:g}: coarser meshes diverge with the factors that are best "
                         "on the full mesh, a different control problem")
-    parser.add_argument("--step-height", type=positive_float, default=STEP_HEIGHT_H, metavar="M",
-                        help=f"step height in m of the built-in case (default {STEP_HEIGHT_H:g} = h; "
-                        f"{2 * STEP_HEIGHT_H:g} = 2h, the paper's second test geometry)")
+    parser.add_argument("--step-height", type=positive_float, nargs="+", default=[STEP_HEIGHT_H], metavar="M",
+                        help=f"step heights in m of the built-in case (default {STEP_HEIGHT_H:g} = h; "
+                        f"{2 * STEP_HEIGHT_H:g} = 2h, the paper's second test geometry); several: every "
+                        "cell on every (height, velocity)")
     parser.add_argument("--pool", type=positive_int, default=1, help="worker processes (default 1)")
     parser.add_argument("--simple-variant", choices=("SIMPLE", "SIMPLEC"), default=None,
                         help="pressure-velocity coupling (default: SIMPLEC, the paper's code's)")
-    parser.add_argument("--inlet-velocity", type=positive_float, default=44.2,
-                        help="inlet velocity in m/s (default 44.2, the paper's U_ref)")
+    parser.add_argument("--inlet-velocity", type=positive_float, nargs="+", default=[44.2], metavar="V",
+                        help="inlet velocities in m/s (default 44.2, the paper's U_ref); several: every cell "
+                        "on every (height, velocity), and OUT/family_best.json")
     parser.add_argument("--max-iterations", type=positive_int, default=4000,
                         help="iteration cap per cell (default 4000)")
     parser.add_argument("--relax-k-omega", type=k_omega_factor, default=None, metavar="F",
@@ -110,15 +117,25 @@ def _config(args: argparse.Namespace) -> Any:
     convergence = TRAIN_CONVERGENCE if args.criterion == "train" else TEST_CONVERGENCE
     if args.alpha_t is not None and args.relax_k_omega is not None:
         fail("--alpha-t and --relax-k-omega both set the k/omega factor: give one")
-    cfg = FoamEnvConfig(mesh_scale=args.mesh_scale, step_height=args.step_height,
+    for flag, values in (("--step-height", args.step_height), ("--inlet-velocity", args.inlet_velocity)):
+        if len({f"{v:g}" for v in values}) != len(values):
+            fail(f"{flag}: the values must be distinct, got {' '.join(f'{v:g}' for v in values)}")
+    cfg = FoamEnvConfig(mesh_scale=args.mesh_scale, step_height=args.step_height[0],
                         simple_variant=args.simple_variant,
-                        inlet_velocity=args.inlet_velocity, max_iterations=args.max_iterations,
+                        inlet_velocity=args.inlet_velocity[0], max_iterations=args.max_iterations,
                         relax_k_omega=args.relax_k_omega, convergence=dict(convergence),
                         confirm_alpha_u=args.confirm_alpha_u)
     try:
+        for height, velocity in _conditions(args):  # each condition must be a case the env accepts
+            dataclasses.replace(cfg, step_height=height, inlet_velocity=velocity).validate()
         return cfg.validate()
     except ValueError as err:
         fail(str(err))
+
+
+def _conditions(args: argparse.Namespace) -> list[tuple[float, float]]:
+    """Every (step height, inlet velocity) of the grid, heights outermost."""
+    return [(h, v) for h in args.step_height for v in args.inlet_velocity]
 
 
 def _check_openfoam() -> None:
@@ -147,18 +164,20 @@ def _make_out_dir(out: Path) -> Path:
 
 
 def run_grid_foam(args: argparse.Namespace) -> int:
-    """Run the grid, write grid.csv and grid.png, print the best cell."""
+    """Run the grid, write grid.csv and the heatmaps (and family_best.json over several conditions),
+    print the best cell."""
     from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from foam_bridge.grid import best_cell, plot_grid, plot_grid_slices, run_grid, write_grid_csv
+    from foam_bridge.grid import run_grid, write_grid_csv
 
     cfg = _config(args)
     out = _check_out_dir(args.out)
     _check_openfoam()
     _make_out_dir(out)
     console = Console(highlight=False)
-    total = len(args.alpha_u) * len(args.alpha_p) * len(args.alpha_t or [None])
+    conditions = _conditions(args)
+    total = len(args.alpha_u) * len(args.alpha_p) * len(args.alpha_t or [None]) * len(conditions)
     columns = (TextColumn("[bold]grid-foam"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
                TextColumn("{task.description}"))
     with Progress(*columns, console=console, transient=False) as progress:
@@ -166,26 +185,64 @@ def run_grid_foam(args: argparse.Namespace) -> int:
 
         def on_cell(cell: Any) -> None:
             factors = ", ".join(f"{f:g}" for f in cell.factors)
-            progress.update(task, advance=1, description=f"last: ({factors}) {cell.outcome} @ "
+            where = f"H {cell.step_height:g} m, V {cell.inlet_velocity:g}: " if len(conditions) > 1 else ""
+            progress.update(task, advance=1, description=f"last: {where}({factors}) {cell.outcome} @ "
                             f"{cell.iterations}")
 
         try:
             cells = run_grid(cfg, args.alpha_u, args.alpha_p, pool=args.pool, on_cell=on_cell,
-                             alpha_t=args.alpha_t)
+                             alpha_t=args.alpha_t, conditions=conditions if len(conditions) > 1 else None)
         except ValueError as err:  # a case the env rejects: the same for every cell
             fail(str(err))
     write_grid_csv(cells, out / "grid.csv")
+    figures = _plot_conditions(cells, cfg, args, out)
+    lines = [_best_line(cells)] if len(conditions) == 1 else _write_family_best(cells, args, out)
+    written = ", ".join(str(out / f) for f in figures)
+    console.print("\n".join(lines) + f"\nwrote {out / 'grid.csv'} and {written}", soft_wrap=True)
+    return 0
+
+
+def _plot_conditions(cells: list[Any], cfg: Any, args: argparse.Namespace, out: Path) -> list[str]:
+    """The heatmaps: grid.png (grid_alpha_t_<A>.png) for one condition, else the same per condition
+    with the stem grid_<geometry>_V<v>; returns the file names."""
+    from foam_bridge.grid import plot_grid, plot_grid_slices
+    from jaxsimrl.evaluation.family import conditions
+    from jaxsimrl.evaluation.foam_eval import geometry_name
+
     factor = cfg.k_omega_relaxation
     k_omega = ("" if args.alpha_t else "k/omega follow alpha_u, " if isinstance(factor, str)
                else f"k/omega {factor:g}, ")
-    title = (f"SIMPLE iterations to convergence, constant factors\n{cfg.variant}, {k_omega}"
-             f"{args.criterion} criterion, mesh scale {args.mesh_scale:g}, V = {args.inlet_velocity:g} m/s")
-    figures = plot_grid_slices(cells, out, title) if args.alpha_t else ["grid.png"]
-    if not args.alpha_t:
-        plot_grid(cells, out / "grid.png", title)
+    several = len(_conditions(args)) > 1
+    names = []
+    for height, velocity in conditions(cells):
+        mine = [c for c in cells if c.condition == (height, velocity)]
+        shape = f"{geometry_name(height)} (step {height:g} m), " if several else ""
+        title = (f"SIMPLE iterations to convergence, constant factors\n{cfg.variant}, {k_omega}"
+                 f"{args.criterion} criterion, mesh scale {args.mesh_scale:g}, {shape}V = {velocity:g} m/s")
+        stem = f"grid_{geometry_name(height)}_V{velocity:g}" if several else "grid"
+        if args.alpha_t:
+            names += plot_grid_slices(mine, out, title, stem)
+        else:
+            plot_grid(mine, out / f"{stem}.png", title)
+            names.append(f"{stem}.png")
+    return names
+
+
+def _best_line(cells: list[Any]) -> str:
+    from foam_bridge.grid import best_cell
+
     best = best_cell(cells)
     names = ("alpha_u", "alpha_p", "alpha_t")
-    summary = ("best: " + " ".join(f"{n}={f:g}" for n, f in zip(names, best.factors, strict=False))
-               + f" -> {best.iterations} iterations" if best else "no cell converged")
-    console.print(f"{summary}\nwrote {out / 'grid.csv'} and {', '.join(str(out / f) for f in figures)}")
-    return 0
+    return ("best: " + " ".join(f"{n}={f:g}" for n, f in zip(names, best.factors, strict=False))
+            + f" -> {best.iterations} iterations" if best else "no cell converged")
+
+
+def _write_family_best(cells: list[Any], args: argparse.Namespace, out: Path) -> list[str]:
+    """OUT/family_best.json (atomically); returns the summary line and the file's line."""
+    from jaxsimrl.evaluation.family import FAMILY_BEST_JSON, family_best, family_best_json, summary_line
+    from jaxsimrl.runs.atomic import atomic_write_json
+
+    best = family_best(cells, args.max_iterations)
+    atomic_write_json(out / FAMILY_BEST_JSON, family_best_json(best, cells, args.max_iterations,
+                                                               "--max-iterations of grid-foam"))
+    return [summary_line(best, len(_conditions(args))), f"wrote {out / FAMILY_BEST_JSON}"]

@@ -5,6 +5,8 @@ evaluation plan), and its actions depend only on (seed, uid, step) and the episo
 never on the batch it shares: so the same command gives the same numbers whatever the pool size.
 
 - :class:`ConstantController`: the same factors at every step (best constant, the tutorial's defaults).
+- :class:`CaseGridController`: a grid of constant factors, one cell per episode (the per-case oracle:
+  every cell of its grid on the test case; its best is chosen afterwards, see foam_oracle).
 - :class:`RandomController`: factors uniform in the action box at every step (the paper's baseline).
 - :class:`LearnedController`: the trained policy, deterministic (its mean action) or stochastic: a thin
   adapter from this protocol (begin/act/end per uid) to a :class:`jaxsimrl.policy.BatchActor`.
@@ -20,7 +22,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from foam_bridge.episodes import ConstantFactors
+from foam_bridge.episodes import ConstantFactors, StatelessController
 
 if TYPE_CHECKING:  # only a type: the controllers themselves need no JAX
     from jaxsimrl.policy import BatchActor
@@ -34,6 +36,24 @@ class ConstantController(ConstantFactors):
     def __init__(self, name: str, factors: Sequence[float]) -> None:
         super().__init__(factors)
         self.name = name
+
+
+class CaseGridController(StatelessController):
+    """Constant factors per episode: ``cells[i]`` at every step of the episodes assigned cell i."""
+
+    repeats = False
+
+    def __init__(self, name: str, cells: Sequence[Sequence[float]]) -> None:
+        self.name = name
+        self.cells = [np.asarray(cell, np.float64).reshape(-1) for cell in cells]
+        self._cell_of: dict[int, int] = {}
+
+    def assign(self, uid: int, cell: int) -> None:
+        """Episode ``uid`` runs ``cells[cell]``."""
+        self._cell_of[uid] = cell
+
+    def act(self, uids: Sequence[int], obs: np.ndarray, steps: Sequence[int]) -> np.ndarray:
+        return np.stack([self.cells[self._cell_of[uid]] for uid in uids])
 
 
 class RandomController:

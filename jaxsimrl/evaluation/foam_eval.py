@@ -10,10 +10,14 @@ Controllers, all in the same run (see foam_controllers):
 - ``learned_deterministic``: the policy's mean action; one run per (geometry, velocity): the solver is
   deterministic, so repeats would be identical;
 - ``learned_stochastic``: actions sampled from the policy, ``samples`` runs (the paper: 10);
-- ``best_constant``: the converged cell with the fewest iterations of a grid-foam grid.csv, or of a
-  small grid eval-foam runs itself at the first velocity on the first geometry; one run per cell;
-- ``tutorial_defaults``: the tutorial's (U 0.9, p 0.8; k/omega as the training case sets them); one run;
-- ``random``: factors uniform in the action box at every step, ``samples`` runs (the paper's baseline).
+- ``best_constant``: the converged cell with the fewest iterations of a grid-foam grid.csv (of a grid
+  over several conditions: the cell best for that family, jaxsimrl.evaluation.family), or of a small
+  grid eval-foam runs itself at the first velocity on the first geometry; one run per cell;
+- ``tutorial_defaults``: the tutorial's (U 0.9, p 0.8, and on a run with the k/omega action k/omega
+  0.8, backwardFacingStep2D's ".*" 0.8; a 2-action run keeps its own k/omega factor); one run;
+- ``random``: factors uniform in the action box at every step, ``samples`` runs (the paper's baseline);
+- ``case_oracle`` (only when asked for: it costs a grid per case): the best constant of a grid on each
+  test case itself, and what that grid cost (foam_oracle).
 
 With ``reference_iterations`` N, every (geometry, velocity) first gets a reference run: the best
 constant (the tutorial's defaults without one) for exactly N iterations, with no convergence test.
@@ -50,7 +54,13 @@ from foam_bridge.config import (
     FoamEnvConfig,
     without_convergence_test,
 )
-from jaxsimrl.evaluation.foam_controllers import ConstantController, LearnedController, RandomController
+from jaxsimrl.evaluation import foam_oracle
+from jaxsimrl.evaluation.foam_controllers import (
+    CaseGridController,
+    ConstantController,
+    LearnedController,
+    RandomController,
+)
 from jaxsimrl.evaluation.foam_reference_cache import CachedReference, ReferenceCache, reference_keys
 from jaxsimrl.evaluation.foam_runner import EpisodeResult, Job, run_episodes
 from jaxsimrl.runs.atomic import atomic_write_json, atomic_write_text
@@ -67,7 +77,10 @@ DEFAULT_GRID = (0.8, 0.9, 0.95)
 #: backwardFacingStep2D's own relaxation factors (U 0.9, p 0.8; k and omega as the case sets them).
 TUTORIAL_DEFAULTS = (0.9, 0.8)
 #: Controller keys, in the order of tables and figures.
-CONTROLLERS = ("learned_deterministic", "learned_stochastic", "best_constant", "tutorial_defaults", "random")
+CONTROLLERS = ("learned_deterministic", "learned_stochastic", "best_constant", "tutorial_defaults", "random",
+               foam_oracle.ORACLE)
+#: Those run without --controllers: the oracle's grid per case is paid for only when asked.
+DEFAULT_CONTROLLERS = CONTROLLERS[:-1]
 #: FoamEnvConfig fields left out of the report's "case": they vary per cell, or the report gives them
 #: apart ("action_box": the training box; the env's own box is widened to hold the constants).
 CASE_OMITTED = ("work_dir", "keep_cases", "step_height", "inlet_velocity", "action_low", "action_high")
@@ -95,12 +108,16 @@ class EvalSpec:
     #: alpha_t of that grid for a run with the k/omega action (None: the paper's 0.8 only).
     grid_alpha_t: tuple[float, ...] | None = None
     out: Path | None = None
-    controllers: tuple[str, ...] = CONTROLLERS
+    controllers: tuple[str, ...] = DEFAULT_CONTROLLERS
     reference_iterations: int | None = None
     #: A directory of reference runs to reuse and add to (foam_reference_cache); None: run them all.
     reference_cache: Path | None = None
     #: FoamEnvConfig.confirm_alpha_u of every run (None: the training config's own, the paper's test).
     confirm_alpha_u: float | None = None
+    #: Axes of the per-case oracle's grid (None: --baseline-grid's, else the small grid's; foam_oracle).
+    oracle_alpha_u: tuple[float, ...] | None = None
+    oracle_alpha_p: tuple[float, ...] | None = None
+    oracle_alpha_t: tuple[float, ...] | None = None
 
     def validate(self) -> EvalSpec:
         """One-line ValueError naming the first bad field; returns self."""
@@ -129,7 +146,12 @@ class EvalSpec:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
-        for name in ("grid_alpha_u", "grid_alpha_p", *(("grid_alpha_t",) if self.grid_alpha_t else ())):
+        given = [n for n in ("grid_alpha_t", "oracle_alpha_u", "oracle_alpha_p", "oracle_alpha_t")
+                 if getattr(self, n) is not None]
+        if any(n.startswith("oracle") for n in given) and foam_oracle.ORACLE not in self.controllers:
+            raise ValueError(f"oracle_alpha_u/p/t set the grid of the {foam_oracle.ORACLE} controller: add "
+                             "it to the controllers, or leave them out")
+        for name in ("grid_alpha_u", "grid_alpha_p", *given):
             values = getattr(self, name)
             if not values or not all(math.isfinite(v) and 0 < v <= 1 for v in values):
                 raise ValueError(f"{name}: relaxation factors must be in (0, 1], got {list(values)}")
@@ -147,8 +169,10 @@ class Baseline:
     alpha_u: float
     alpha_p: float
     source: str
-    grid_iterations: int
+    grid_iterations: int | None  # the best cell's; None for a family's best (no one condition's)
     alpha_t: float | None = None  # the k/omega factor of a 3-D grid's best cell
+    #: A grid over several conditions: family_best_json (the rule, the mean and worst ratio, the cost).
+    family: dict[str, Any] | None = None
 
     @property
     def factors(self) -> tuple[float, ...]:
@@ -216,9 +240,9 @@ def eval_config(train: FoamEnvConfig, spec: EvalSpec, step_height: float | None,
     return grid_config(cfg, [c[0] for c in constants], [c[1] for c in constants], third)
 
 
-def baseline_from_csv(path: str | Path) -> Baseline:
-    """The best converged cell of a grid-foam grid.csv; one-line ValueError for a missing or bad file."""
-    from foam_bridge.grid import best_cell, read_grid_csv
+def read_baseline_grid(path: str | Path) -> list[Any]:
+    """The cells of a grid-foam grid.csv; one-line ValueError for a missing or bad file."""
+    from foam_bridge.grid import read_grid_csv
 
     try:
         cells = read_grid_csv(path)
@@ -227,13 +251,37 @@ def baseline_from_csv(path: str | Path) -> Baseline:
     except (KeyError, ValueError, TypeError, csv.Error) as err:
         raise ValueError(f"--baseline-grid {path}: not a grid-foam grid.csv ({type(err).__name__}: "
                          f"{err})") from None
-    best = best_cell(cells)
+    return cells
+
+
+def baseline_from_csv(path: str | Path, cells: Sequence[Any] | None = None) -> Baseline:
+    """The best constant of a grid-foam grid.csv (``cells``: already read from it): its best converged
+    cell, or over several conditions the cell best for the family (jaxsimrl.evaluation.family, each
+    failure at the grid's cap); one-line ValueError for a missing or bad file or no converged cell."""
+    from foam_bridge.grid import best_cell
+    from jaxsimrl.evaluation.family import conditions, family_best, family_best_json, grid_cap
+
+    cells = read_baseline_grid(path) if cells is None else cells
+    family = None
+    if len(conditions(cells)) > 1:
+        cap, cap_source = grid_cap(cells)
+        try:
+            chosen = family_best(cells, cap)
+        except ValueError as err:
+            raise ValueError(f"--baseline-grid {path}: {err}") from None
+        best = None if chosen is None else next(c for c in cells if c.factors == chosen.factors)
+        family = family_best_json(chosen, cells, cap, cap_source)
+        source = (f"grid.csv {path} (the cell best for its {len(conditions(cells))} conditions: lowest "
+                  f"geometric mean of iterations / each condition's best, failures at the cap {cap})")
+    else:
+        best = best_cell(cells)
+        source = f"grid.csv {path} (best converged cell, as recorded there)"
     if best is None:
         raise ValueError(f"--baseline-grid {path}: no converged cell to take the best constant from")
     if not all(0 < f <= 1 for f in best.factors):
         raise ValueError(f"--baseline-grid {path}: best cell {best.factors} is outside (0, 1]")
-    return Baseline(best.alpha_u, best.alpha_p, f"grid.csv {path} (best converged cell, as recorded there)",
-                    best.iterations, best.alpha_t)
+    return Baseline(best.alpha_u, best.alpha_p, source, None if family else best.iterations, best.alpha_t,
+                    family)
 
 
 def baseline_from_grid(spec: EvalSpec, cfg: FoamEnvConfig, velocity: float, geometry: str,
@@ -271,14 +319,17 @@ def episode_uid(controller: str, geometry: str, velocity: float, sample: int) ->
 
 
 def plan(names: Sequence[str], velocities: Sequence[float], repeats: dict[str, bool],
-         samples: int) -> list[Job]:
+         samples: int, runs: dict[str, int] | None = None) -> list[Job]:
     """Every episode of the evaluation, geometry by geometry, velocity by velocity, for the controllers
-    of ``repeats`` (in CONTROLLERS order)."""
+    of ``repeats`` (in CONTROLLERS order): ``samples`` runs per cell of those that repeat, one of the
+    others, and ``runs[name]`` of those named there (the oracle: one per cell of its grid)."""
+    runs = runs or {}
     jobs: list[Job] = []
     for geometry in names:
         for velocity in velocities:
             for controller in (c for c in CONTROLLERS if c in repeats):
-                for sample in range(samples if repeats[controller] else 1):
+                count = runs.get(controller, samples if repeats[controller] else 1)
+                for sample in range(count):
                     uid = episode_uid(controller, geometry, velocity, sample)
                     jobs.append(Job(uid, controller, geometry, float(velocity), sample))
     if len({job.uid for job in jobs}) != len(jobs):  # a crc32 collision: never seen, but never silent
@@ -287,8 +338,10 @@ def plan(names: Sequence[str], velocities: Sequence[float], repeats: dict[str, b
 
 
 def make_controllers(run: Any, baseline: Baseline | None, pool: int, seed: int,
-                     names: Sequence[str] = CONTROLLERS) -> dict[str, Any]:
-    """The controllers ``names`` of the protocol (CONTROLLERS; "best_constant" needs a baseline)."""
+                     names: Sequence[str] = DEFAULT_CONTROLLERS,
+                     oracle: Sequence[Sequence[float]] = ()) -> dict[str, Any]:
+    """The controllers ``names`` of the protocol (CONTROLLERS; "best_constant" needs a baseline,
+    "case_oracle" the cells of its grid, ``oracle``)."""
     from jaxsimrl.policy import BatchActor  # JAX, only once learned controllers are built
 
     actor = BatchActor(run.policy, pool)
@@ -299,14 +352,18 @@ def make_controllers(run: Any, baseline: Baseline | None, pool: int, seed: int,
         "tutorial_defaults": lambda: ConstantController("tutorial_defaults",
                                                         as_action(run.foam, TUTORIAL_DEFAULTS)),
         "random": lambda: RandomController("random", run.foam.action_low, run.foam.action_high, seed),
+        foam_oracle.ORACLE: lambda: CaseGridController(foam_oracle.ORACLE,
+                                                       [as_action(run.foam, c) for c in oracle]),
     }
     return {name: makers[name]() for name in names}
 
 
-def constant_factors(baseline: Baseline | None, cfg: FoamEnvConfig) -> list[tuple[float, ...]]:
-    """The constant controllers' actions (the env's action box must hold them)."""
+def constant_factors(baseline: Baseline | None, cfg: FoamEnvConfig,
+                     oracle: Sequence[Sequence[float]] = ()) -> list[tuple[float, ...]]:
+    """The constant controllers' actions, the oracle's grid cells included (the env's action box must
+    hold them)."""
     chosen = [TUTORIAL_DEFAULTS] if baseline is None else [baseline.factors, TUTORIAL_DEFAULTS]
-    return [as_action(cfg, factors) for factors in chosen]
+    return [as_action(cfg, factors) for factors in (*chosen, *oracle)]
 
 
 def evaluate_foam(spec: EvalSpec, on_result: Callable[[EpisodeResult, int, int], None] | None = None,
@@ -320,7 +377,10 @@ def evaluate_foam(spec: EvalSpec, on_result: Callable[[EpisodeResult, int, int],
     spec.validate()
     run = load_foam_run(spec.run_dir)
     shapes = geometries(spec, run.foam)
-    baseline = baseline_from_csv(spec.baseline_grid) if spec.baseline_grid is not None else None
+    grid = read_baseline_grid(spec.baseline_grid) if spec.baseline_grid is not None else None
+    baseline = baseline_from_csv(spec.baseline_grid, grid) if grid is not None else None
+    oracle = foam_oracle.oracle_cells(foam_oracle.oracle_axes(spec, run.foam, grid)) \
+        if foam_oracle.ORACLE in spec.controllers else []
     out = _make_output_dir(spec.output_dir)
     started = time.monotonic()
     if baseline is None and "best_constant" in spec.controllers:
@@ -332,17 +392,23 @@ def evaluate_foam(spec: EvalSpec, on_result: Callable[[EpisodeResult, int, int],
     if baseline is not None:
         as_action(run.foam, baseline.factors)  # a 3-D grid's best cell for a 2-action policy: say so now
         say(f"best constant {_text(baseline.factors)} from {baseline.source}")
-    controllers = make_controllers(run, baseline, spec.pool, spec.seed, spec.controllers)
-    jobs = plan(list(shapes), spec.velocities, {k: c.repeats for k, c in controllers.items()}, spec.samples)
-    results, references = _run_plan(spec, run, shapes, jobs, controllers, baseline, on_result)
+    controllers = make_controllers(run, baseline, spec.pool, spec.seed, spec.controllers, oracle)
+    jobs = plan(list(shapes), spec.velocities, {k: c.repeats for k, c in controllers.items()}, spec.samples,
+                {foam_oracle.ORACLE: len(oracle)})
+    for job in (j for j in jobs if j.controller == foam_oracle.ORACLE):
+        controllers[job.controller].assign(job.uid, job.sample)
+    constants = constant_factors(baseline, run.foam, oracle)
+    results, references = _run_plan(spec, run, shapes, jobs, controllers, baseline, constants, on_result)
     rows = [run_row(r, shapes[r.job.geometry], references.errors.get(r.job.uid)) for r in results]
-    report = build_report(spec, run, baseline, shapes, rows, time.monotonic() - started, references)
+    rows, chosen = foam_oracle.choose(rows, oracle, run.foam.max_iterations)
+    report = build_report(spec, run, baseline, shapes, rows, time.monotonic() - started, references,
+                          constants, chosen)
     write_outputs(report, rows, out)
     return report
 
 
 def _run_plan(spec: EvalSpec, run: Any, shapes: dict[str, float | None], jobs: list[Job],
-              controllers: dict[str, Any], baseline: Baseline | None,
+              controllers: dict[str, Any], baseline: Baseline | None, constants: list[tuple[float, ...]],
               on_result: Callable[[EpisodeResult, int, int], None] | None
               ) -> tuple[list[EpisodeResult], References]:
     """Every job, one geometry (one case, one pool) after the other, each geometry's reference runs
@@ -359,7 +425,7 @@ def _run_plan(spec: EvalSpec, run: Any, shapes: dict[str, float | None], jobs: l
             on_result(result, done, total)
 
     for name, height in shapes.items():
-        cfg = eval_config(run.foam, spec, height, constant_factors(baseline, run.foam))
+        cfg = eval_config(run.foam, spec, height, constants)
         if references.wanted:
             references.run(cfg, name, spec.velocities, spec.pool, progress)
         mine = [j for j in jobs if j.geometry == name]
@@ -512,9 +578,11 @@ def cell_summary(rows: Sequence[dict[str, Any]], max_iterations: int) -> dict[st
 
 def build_report(spec: EvalSpec, run: Any, baseline: Baseline | None, shapes: dict[str, float | None],
                  rows: Sequence[dict[str, Any]], wall_time_s: float,
-                 references: References | None = None) -> dict[str, Any]:
+                 references: References | None = None, constants: list[tuple[float, ...]] | None = None,
+                 oracle: dict[str, dict[str, Any]] | None = None) -> dict[str, Any]:
     """eval.json: the protocol, the baseline, and per controller -> geometry -> velocity the runs
-    (``rows``, as run_row makes them) and their statistics."""
+    (``rows``, as run_row makes them) and their statistics; the oracle's cells add its choice and cost
+    (``oracle``, from foam_oracle.choose)."""
     from jaxsimrl.envs.foam_config import foam_config_to_json
 
     chosen = [c for c in CONTROLLERS if c in spec.controllers]
@@ -525,7 +593,9 @@ def build_report(spec: EvalSpec, run: Any, baseline: Baseline | None, shapes: di
                 cell = [r for r in rows if r["controller"] == controller and r["geometry"] == geometry
                         and r["velocity"] == float(velocity)]
                 table[controller][geometry][f"{velocity:g}"] = cell_summary(cell, run.foam.max_iterations)
-    case = eval_config(run.foam, spec, None, constant_factors(baseline, run.foam))
+                if controller == foam_oracle.ORACLE and oracle:
+                    table[controller][geometry][f"{velocity:g}"]["oracle"] = oracle[geometry][f"{velocity:g}"]
+    case = eval_config(run.foam, spec, None, constants or constant_factors(baseline, run.foam))
     described = {
         "learned_deterministic": "the policy's mean action, one run per cell",
         "learned_stochastic": f"actions sampled from the policy, {spec.samples} runs per cell",
@@ -533,6 +603,8 @@ def build_report(spec: EvalSpec, run: Any, baseline: Baseline | None, shapes: di
         f"constant {_text(baseline.factors)}, one run per cell",
         "tutorial_defaults": f"constant {TUTORIAL_DEFAULTS} (U, p), k/omega as the case, one run per cell",
         "random": f"uniform in the action box at every step, {spec.samples} runs per cell",
+        foam_oracle.ORACLE: "per cell, the best constant of a grid on that case (its run; the grid's cost "
+        "in 'oracle', its other runs in eval.csv as case_oracle_grid)",
     }
     return {
         "run_dir": str(run.path), "checkpoint_step": run.checkpoint_step, "checkpoint_update": run.update,
@@ -546,7 +618,8 @@ def build_report(spec: EvalSpec, run: Any, baseline: Baseline | None, shapes: di
         "baseline": None if baseline is None else {
             "alpha_u": baseline.alpha_u, "alpha_p": baseline.alpha_p, "source": baseline.source,
             "grid_iterations": baseline.grid_iterations,
-            **({} if baseline.alpha_t is None else {"alpha_t": baseline.alpha_t})},
+            **({} if baseline.alpha_t is None else {"alpha_t": baseline.alpha_t}),
+            **({} if baseline.family is None else {"family": baseline.family})},
         "reference": None if references is None else references.summary(),
         "results": table,
         "wall_time_s": wall_time_s,

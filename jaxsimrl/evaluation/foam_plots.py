@@ -28,9 +28,11 @@ from matplotlib.figure import Figure
 from jaxsimrl.runs.atomic import atomic_write_bytes
 
 LABELS = {"learned_deterministic": "learned\n(mean)", "learned_stochastic": "learned\n(sampled)",
-          "best_constant": "best\nconstant", "tutorial_defaults": "tutorial\ndefaults", "random": "random"}
+          "best_constant": "best\nconstant", "tutorial_defaults": "tutorial\ndefaults", "random": "random",
+          "case_oracle": "case\noracle"}
 COLOURS = {"learned_deterministic": "tab:blue", "learned_stochastic": "tab:cyan",
-           "best_constant": "tab:green", "tutorial_defaults": "tab:olive", "random": "tab:red"}
+           "best_constant": "tab:green", "tutorial_defaults": "tab:olive", "random": "tab:red",
+           "case_oracle": "indigo"}
 #: (controller, line width, opacity) of the factor trajectories: the samples thin, the mean action bold.
 #: The action's factors, one row of factors.png each (alpha_t only for a run with the k/omega action).
 FACTOR_KEYS = ("alpha_u", "alpha_p", "alpha_t")
@@ -189,7 +191,8 @@ def plot_factors(report: dict[str, Any], path: Path) -> Path:
             ax.grid(alpha=0.3)
         axes[0, column].set_title(f"learned factors, {geometry} (bold: mean action; thin: samples)",
                                   fontsize=10)
-        axes[0, column].legend(fontsize=7, loc="lower right")
+        if axes[0, column].get_legend_handles_labels()[0]:  # nothing to name without a learned run
+            axes[0, column].legend(fontsize=7, loc="lower right")
     return _save(fig, path)
 
 
