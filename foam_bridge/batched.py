@@ -38,12 +38,20 @@ import os
 import shutil
 import time
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Self
 
 import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 
-from foam_bridge.backends import BAD_INPUT_ERRORS, WORKER_DIED, Reply, Request, make_backend, validate_pool
+from foam_bridge.backends import (
+    BAD_INPUT_ERRORS,
+    WORKER_DIED,
+    EnvFactory,
+    Reply,
+    Request,
+    make_backend,
+    validate_pool,
+)
 from foam_bridge.config import (  # failure_reward: re-exported
     ACTION_NAMES,
     FoamEnvConfig,
@@ -54,7 +62,7 @@ from foam_bridge.config import (  # failure_reward: re-exported
 from foam_bridge.env import action_spec, observation_spec
 from foam_bridge.records import EpisodeRecord
 
-__all__ = ["SEED_BOUND", "BatchedFoamEnv"]
+__all__ = ["SEED_BOUND", "BatchedFoamEnv", "FoamBatchCore"]
 
 SEED_BOUND = 2**31 - 1
 
@@ -106,10 +114,10 @@ class _Tally:
     node: str = ""
 
 
-class BatchedFoamEnv:
-    """``num_envs`` FoamCaseEnv cases on a ``pool`` of workers (see the module docstring)."""
-
-    metadata = {"autoreset_mode": AutoresetMode.SAME_STEP}
+class FoamBatchCore:
+    """What a batch of foam envs on a worker pool keeps, whatever order it steps them in: the pool, the
+    per-env seed streams and the tallies of the running episodes, from which it writes the record of an
+    episode its env could not report. BatchedFoamEnv (lock-step) and foam_bridge.async_batch build on it."""
 
     def __init__(
         self,
@@ -120,6 +128,7 @@ class BatchedFoamEnv:
         ray_address: str | None = None,
         work_dir: str | os.PathLike[str] | None = None,
         seed: int | list[int] | None = None,
+        make_env: EnvFactory | None = None,
     ) -> None:
         self.cfg = cfg = cfg.validate().with_absolute_paths()
         pool = validate_pool(num_envs, pool)  # bad sizes fail before anything is created
@@ -131,7 +140,8 @@ class BatchedFoamEnv:
         self._tallies = [_Tally(np.zeros(cfg.observation_size, np.float32)) for _ in range(num_envs)]
         self.work_dir, self._temp_dir = work_root(cfg, work_dir)
         try:
-            self.backend = make_backend(backend, cfg, num_envs, pool, self.work_dir, ray_address)
+            self.backend = make_backend(backend, cfg, num_envs, pool, self.work_dir, ray_address,
+                                        make_env)
         except BaseException:
             if self._temp_dir:
                 shutil.rmtree(self.work_dir, ignore_errors=True)
@@ -148,21 +158,6 @@ class BatchedFoamEnv:
 
     def _episode_seed(self, env_id: int) -> int:
         return int(self._streams[env_id].integers(SEED_BOUND))
-
-    # ----- reset -------------------------------------------------------------------------------
-    def reset(
-        self, seed: int | list[int] | None = None, options: dict[str, Any] | None = None
-    ) -> tuple[np.ndarray, dict[str, Any]]:
-        """New episode in every env. ``seed`` re-seeds the per-env streams; ``options`` go to every env."""
-        if seed is not None:
-            self._streams = self._seed_streams(seed)
-        infos: dict[str, Any] = {}
-        results, failures = self._reset_envs(list(range(self.num_envs)), options)
-        if failures:
-            raise _reset_error(failures[min(failures)])
-        for env_id, (_, info) in results.items():
-            infos = self._batcher.add(infos, info, env_id)
-        return self._observations(), infos
 
     def _reset_envs(
         self, env_ids: list[int], options: dict[str, Any] | None = None
@@ -198,6 +193,92 @@ class BatchedFoamEnv:
                                        residuals=dict(info.get("residuals", {})),
                                        node=self.backend.node_of(env_id))
         return obs, info
+
+    def _step_result(self, reply: Reply, action: np.ndarray) -> tuple:
+        tally = self._tallies[reply.env_id]
+        if reply.ok:
+            tally.actions.append([float(a) for a in action])
+            obs, reward, term, trunc, info = reply.value
+            tally.obs = np.asarray(obs, np.float32)
+            tally.iterations = int(info.get("iterations", tally.iterations))
+            tally.residuals = dict(info.get("residuals", tally.residuals))
+            tally.episode_return += float(reward)
+            return tally.obs, float(reward), bool(term), bool(trunc), info
+        cause = ((reply.error or WORKER_DIED) if reply.worker_died
+                 else f"worker error: {reply.error} ({reply.where})")
+        return self._failed_step(tally, action, cause)
+
+    def _failed_step(self, tally: _Tally, action: np.ndarray, cause: str) -> tuple:
+        """The step result of an episode the env itself could not report: crashed, with the penalty."""
+        tally.actions.append([float(a) for a in action])
+        rate = cost_per_iteration(self.cfg, -tally.episode_return, tally.iterations)
+        reward = failure_reward(self.cfg, tally.iterations, rate)
+        tally.episode_return += reward
+        return tally.obs, reward, True, False, self._failure_info(tally, cause)
+
+    def _failure_info(self, tally: _Tally, cause: str) -> dict[str, Any]:
+        """The info (with episode record) of an episode the env itself could not report."""
+        record = EpisodeRecord(
+            outcome="crashed", cause=cause, iterations=tally.iterations, seed=tally.seed,
+            inlet_velocity=tally.inlet_velocity, step_height=tally.step_height, actions=list(tally.actions),
+            episode_return=tally.episode_return, wall_time_s=time.monotonic() - tally.started,
+            residuals=dict(tally.residuals), node=tally.node,
+        ).to_json()
+        return {"iterations": tally.iterations, "residuals": dict(tally.residuals), "outcome": "crashed",
+                "cause": cause, "inlet_velocity": tally.inlet_velocity, "episode": record}
+
+    def _observations(self) -> np.ndarray:
+        return np.stack([tally.obs for tally in self._tallies]).astype(np.float32)
+
+    # ----- misc --------------------------------------------------------------------------------
+    def iterations(self) -> np.ndarray:
+        """Cumulative SIMPLE iterations of each env's current episode."""
+        return np.array([tally.iterations for tally in self._tallies], np.int32)
+
+    def worker_pids(self) -> list[int]:
+        """Process id of the worker hosting each env (env i -> entry i)."""
+        return [self.backend.worker_pid(i) for i in range(self.num_envs)]
+
+    def close(self) -> None:
+        """Close every env (their solvers die), stop the workers, drop a temporary work_dir. Idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        self.backend.close()
+        if self._temp_dir and not self.cfg.keep_cases:
+            shutil.rmtree(self.work_dir, ignore_errors=True)
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def __del__(self) -> None:
+        if not getattr(self, "_closed", True):
+            self.close()
+
+
+class BatchedFoamEnv(FoamBatchCore):
+    """``num_envs`` FoamCaseEnv cases on a ``pool`` of workers, stepped in lock-step (see the module
+    docstring). ``make_env``: what each worker builds in place of a FoamCaseEnv (foam_bridge.standin)."""
+
+    metadata = {"autoreset_mode": AutoresetMode.SAME_STEP}
+
+    # ----- reset -------------------------------------------------------------------------------
+    def reset(
+        self, seed: int | list[int] | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        """New episode in every env. ``seed`` re-seeds the per-env streams; ``options`` go to every env."""
+        if seed is not None:
+            self._streams = self._seed_streams(seed)
+        infos: dict[str, Any] = {}
+        results, failures = self._reset_envs(list(range(self.num_envs)), options)
+        if failures:
+            raise _reset_error(failures[min(failures)])
+        for env_id, (_, info) in results.items():
+            infos = self._batcher.add(infos, info, env_id)
+        return self._observations(), infos
 
     def _retry_resets(self) -> tuple[dict[int, tuple], dict[int, str]]:
         """Reset the envs whose auto-reset failed. Returns (env -> (the ended episode's last observation,
@@ -239,39 +320,6 @@ class BatchedFoamEnv:
             infos = self._batcher.add(infos, {"final_obs": stale}, i)
         return self._observations(), rewards, terminated, truncated, infos
 
-    def _step_result(self, reply: Reply, action: np.ndarray) -> tuple:
-        tally = self._tallies[reply.env_id]
-        if reply.ok:
-            tally.actions.append([float(a) for a in action])
-            obs, reward, term, trunc, info = reply.value
-            tally.obs = np.asarray(obs, np.float32)
-            tally.iterations = int(info.get("iterations", tally.iterations))
-            tally.residuals = dict(info.get("residuals", tally.residuals))
-            tally.episode_return += float(reward)
-            return tally.obs, float(reward), bool(term), bool(trunc), info
-        cause = ((reply.error or WORKER_DIED) if reply.worker_died
-                 else f"worker error: {reply.error} ({reply.where})")
-        return self._failed_step(tally, action, cause)
-
-    def _failed_step(self, tally: _Tally, action: np.ndarray, cause: str) -> tuple:
-        """The step result of an episode the env itself could not report: crashed, with the penalty."""
-        tally.actions.append([float(a) for a in action])
-        rate = cost_per_iteration(self.cfg, -tally.episode_return, tally.iterations)
-        reward = failure_reward(self.cfg, tally.iterations, rate)
-        tally.episode_return += reward
-        return tally.obs, reward, True, False, self._failure_info(tally, cause)
-
-    def _failure_info(self, tally: _Tally, cause: str) -> dict[str, Any]:
-        """The info (with episode record) of an episode the env itself could not report."""
-        record = EpisodeRecord(
-            outcome="crashed", cause=cause, iterations=tally.iterations, seed=tally.seed,
-            inlet_velocity=tally.inlet_velocity, step_height=tally.step_height, actions=list(tally.actions),
-            episode_return=tally.episode_return, wall_time_s=time.monotonic() - tally.started,
-            residuals=dict(tally.residuals), node=tally.node,
-        ).to_json()
-        return {"iterations": tally.iterations, "residuals": dict(tally.residuals), "outcome": "crashed",
-                "cause": cause, "inlet_velocity": tally.inlet_velocity, "episode": record}
-
     def _autoreset(self, done: np.ndarray, step_infos: list[dict[str, Any]]) -> dict[str, Any]:
         infos: dict[str, Any] = {}
         finished = [int(i) for i in np.flatnonzero(done)]
@@ -287,9 +335,6 @@ class BatchedFoamEnv:
         for i in range(self.num_envs):
             infos = self._batcher.add(infos, reset_infos.get(i, step_infos[i]), i)
         return infos
-
-    def _observations(self) -> np.ndarray:
-        return np.stack([tally.obs for tally in self._tallies]).astype(np.float32)
 
     # ----- resuming ----------------------------------------------------------------------------
     def snapshot(self) -> list[dict[str, Any]]:
@@ -341,34 +386,6 @@ class BatchedFoamEnv:
                 return (f"env {i}: the replayed episode differs (K {tally.iterations}, snapshot "
                         f"{entry['iterations']})")
         return ""
-
-    # ----- misc --------------------------------------------------------------------------------
-    def iterations(self) -> np.ndarray:
-        """Cumulative SIMPLE iterations of each env's current episode."""
-        return np.array([tally.iterations for tally in self._tallies], np.int32)
-
-    def worker_pids(self) -> list[int]:
-        """Process id of the worker hosting each env (env i -> entry i)."""
-        return [self.backend.worker_pid(i) for i in range(self.num_envs)]
-
-    def close(self) -> None:
-        """Close every env (their solvers die), stop the workers, drop a temporary work_dir. Idempotent."""
-        if self._closed:
-            return
-        self._closed = True
-        self.backend.close()
-        if self._temp_dir and not self.cfg.keep_cases:
-            shutil.rmtree(self.work_dir, ignore_errors=True)
-
-    def __enter__(self) -> BatchedFoamEnv:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
-    def __del__(self) -> None:
-        if not getattr(self, "_closed", True):
-            self.close()
 
 
 def _reset_cause(reply: Reply) -> str:

@@ -10,28 +10,30 @@ from pathlib import Path
 from typing import Any
 
 from foam_bridge.backends.base import WORKER_DIED, Backend, validate_pool
-from foam_bridge.backends.worker import BAD_INPUT_ERRORS, Reply, Request, env_dir
+from foam_bridge.backends.worker import BAD_INPUT_ERRORS, EnvFactory, Reply, Request, env_dir
 
 BACKENDS = ("local", "ray")
 
 __all__ = [
-    "BACKENDS", "BAD_INPUT_ERRORS", "WORKER_DIED", "Backend", "Reply", "Request", "env_dir", "make_backend",
-    "validate_pool",
+    "BACKENDS", "BAD_INPUT_ERRORS", "WORKER_DIED", "Backend", "EnvFactory", "Reply", "Request", "env_dir",
+    "make_backend", "validate_pool",
 ]
 
 
 def make_backend(
-    name: str, cfg: Any, num_envs: int, pool: int, work_dir: Path, ray_address: str | None = None
+    name: str, cfg: Any, num_envs: int, pool: int, work_dir: Path, ray_address: str | None = None,
+    make_env: EnvFactory | None = None,
 ) -> Backend:
-    """Start ``pool`` workers of backend ``name`` for ``num_envs`` envs with case dirs under ``work_dir``."""
+    """Start ``pool`` workers of backend ``name`` for ``num_envs`` envs with case dirs under ``work_dir``;
+    each worker builds its envs with ``make_env`` (None: FoamCaseEnv)."""
     if name == "local":
         if ray_address is not None:
             raise ValueError("ray_address is only meaningful with backend='ray'")
         from foam_bridge.backends.local import LocalBackend
 
-        return LocalBackend(cfg, num_envs, pool, work_dir)
+        return LocalBackend(cfg, num_envs, pool, work_dir, make_env=make_env)
     if name == "ray":
         from foam_bridge.backends.ray_backend import RayBackend
 
-        return RayBackend(cfg, num_envs, pool, work_dir, ray_address)
+        return RayBackend(cfg, num_envs, pool, work_dir, ray_address, make_env)
     raise ValueError(f"backend must be one of {BACKENDS}, got {name!r}")

@@ -18,6 +18,14 @@ worker again on the next batch.
 Every batch carries a sequence number and its replies carry it back: a batch whose call was
 interrupted (Ctrl-C, an exception in the caller between send and receive) leaves its replies in the
 worker's channel, and the next batch drops them instead of taking them for its own.
+
+Asynchronous use (foam_bridge.async_batch): ``submit(requests)`` sends each request to its worker as a
+batch of its own, without waiting, queued behind the batches the worker has not answered yet;
+``collect(timeout_s)`` returns the replies of whichever batches are done (at once, or after waiting up
+to ``timeout_s`` for the first). A worker's queued batches are answered in order; its deadline runs
+from when its oldest batch reached the head of its queue. A dead or hung worker answers all its queued
+batches as in ``run`` and is replaced (or lost) the same way. ``run`` must not be called while
+submitted batches are unanswered.
 """
 
 from __future__ import annotations
@@ -25,7 +33,9 @@ from __future__ import annotations
 import logging
 import os
 import socket
+import time
 from abc import ABC, abstractmethod
+from collections import deque
 from typing import Any
 
 from foam_bridge.backends.worker import Reply, Request
@@ -88,6 +98,9 @@ class Backend(ABC):
         self.pool = pool
         self._seq = 0
         self._home = [env_id % pool for env_id in range(num_envs)]  # env -> worker
+        # submitted batches per worker, oldest first: (batch, handle); and when the oldest became the head
+        self._queues: dict[int, deque[tuple[list[Request], Any]]] = {}
+        self._head_since: dict[int, float] = {}
         #: One line per worker lost for good (its envs moved to the others).
         self.lost: list[str] = []
 
@@ -126,6 +139,59 @@ class Backend(ABC):
             for position, answer in zip(positions, answers, strict=True):
                 replies[position] = answer
         return replies  # type: ignore[return-value]
+
+    # ----- asynchronous use (see the module docstring) ------------------------------------------
+    def submit(self, requests: list[Request]) -> None:
+        """Send each request to its worker as a batch of its own, without waiting for the replies: each
+        comes back as soon as it is done, not when the worker's other requests are."""
+        for request in requests:
+            self._seq += 1
+            worker, batch = self.worker_of(request.env_id), [request._replace(seq=self._seq)]
+            queue = self._queues.setdefault(worker, deque())
+            if not queue:
+                self._head_since[worker] = time.monotonic()
+            queue.append((batch, self._send(worker, batch)))
+
+    def pending(self) -> int:
+        """Submitted batches not collected yet."""
+        return sum(len(queue) for queue in self._queues.values())
+
+    def collect(self, timeout_s: float) -> list[Reply]:
+        """The replies of the submitted batches that are done, waiting up to ``timeout_s`` for one."""
+        busy = [worker for worker, queue in self._queues.items() if queue]
+        if not busy:
+            return []
+        due = min(self._head_deadline(worker) for worker in busy)
+        ready = set(self._wait_ready(busy, max(min(timeout_s, due - time.monotonic()), 0.0)))
+        replies: list[Reply] = []
+        for worker in busy:
+            if worker in ready or self._head_deadline(worker) <= time.monotonic():
+                replies += self._collect_head(worker)
+        return replies
+
+    def _head_deadline(self, worker: int) -> float:
+        return self._head_since[worker] + _batch_deadline_s(self.cfg, self._queues[worker][0][0])
+
+    def _collect_head(self, worker: int) -> list[Reply]:
+        """The replies to ``worker``'s oldest batch; if it died, to all its batches (then it is replaced)."""
+        queue = self._queues[worker]
+        batch, handle = queue[0]
+        left = max(self._head_deadline(worker) - time.monotonic(), 0.0)
+        answers = self._receive(worker, batch, handle, left)
+        if answers is not None:
+            queue.popleft()
+            self._head_since[worker] = time.monotonic()
+            return answers
+        cause = self._death_cause(worker)
+        lost = [request for batch, _ in queue for request in batch]
+        queue.clear()
+        self._recover(worker, cause)
+        return [Reply(r.env_id, False, error=cause, worker_died=True, seq=r.seq) for r in lost]
+
+    def _wait_ready(self, workers: list[int], timeout_s: float) -> list[int]:
+        """Which of ``workers`` have an answer (or died) for their oldest submitted batch, waiting up
+        to ``timeout_s`` for one. The default waits on none: each is then read with its deadline."""
+        return workers
 
     def _recover(self, worker: int, cause: str) -> None:
         """Replace a dead worker; without room for one, lose it and move its envs to the others."""

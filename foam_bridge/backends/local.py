@@ -27,7 +27,7 @@ from typing import Any
 
 from foam_bridge.backends.base import Backend, close_deadline_s
 from foam_bridge.backends.reaper import kill_processes_under
-from foam_bridge.backends.worker import EnvHost, Reply, Request, env_dir
+from foam_bridge.backends.worker import EnvFactory, EnvHost, Reply, Request, env_dir
 
 __all__ = ["KILL_JOIN_S", "LocalBackend", "_preflight"]
 
@@ -49,10 +49,10 @@ def _preflight(cfg: Any) -> None:
             check_case(Path(cfg.case_dir), cfg, openfoam, Path(scratch))
 
 
-def _serve(conn: Connection, cfg: Any, work_dir: Path) -> None:
+def _serve(conn: Connection, cfg: Any, work_dir: Path, make_env: EnvFactory | None = None) -> None:
     """Worker main loop."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the driver's to handle; it closes us
-    host = EnvHost(cfg, work_dir)
+    host = EnvHost(cfg, work_dir, make_env)
     try:
         while True:
             try:
@@ -71,11 +71,15 @@ class LocalBackend(Backend):
 
     name = "local"
 
-    def __init__(self, cfg: Any, num_envs: int, pool: int, work_dir: Path, checked: bool = False) -> None:
+    def __init__(self, cfg: Any, num_envs: int, pool: int, work_dir: Path, checked: bool = False,
+                 make_env: EnvFactory | None = None) -> None:
         super().__init__(cfg, num_envs, pool)
-        if not checked:  # ``checked``: the caller has just run the same checks (jaxsimrl solve)
+        # ``checked``: the caller has just run the same checks (jaxsimrl solve); a ``make_env`` of the
+        # caller's own (a stand-in solver) needs neither OpenFOAM nor a case
+        if not checked and make_env is None:
             _preflight(cfg)
         self.work_dir = Path(work_dir)
+        self._make_env = make_env
         self._ctx = mp.get_context("spawn")
         self._procs: list[Any] = [None] * pool
         self._conns: list[Connection | None] = [None] * pool
@@ -85,8 +89,8 @@ class LocalBackend(Backend):
     def _start(self, worker: int) -> None:
         parent_end, child_end = self._ctx.Pipe()
         proc = self._ctx.Process(
-            target=_serve, args=(child_end, self.cfg, self.work_dir), name=f"foam-worker-{worker}",
-            daemon=True,
+            target=_serve, args=(child_end, self.cfg, self.work_dir, self._make_env),
+            name=f"foam-worker-{worker}", daemon=True,
         )
         proc.start()
         child_end.close()
@@ -122,6 +126,15 @@ class LocalBackend(Backend):
             if answers and answers[0].seq == batch[0].seq:
                 return answers
             # the replies of an interrupted earlier batch: drop them, ours come next
+
+    def _wait_ready(self, workers: list[int], timeout_s: float) -> list[int]:
+        """The workers whose pipe has a reply or whose process ended (one without a pipe: at once)."""
+        if any(self._conns[worker] is None for worker in workers):
+            return workers
+        owners = {}
+        for worker in workers:
+            owners[self._conns[worker]] = owners[self._procs[worker].sentinel] = worker
+        return sorted({owners[ready] for ready in wait(list(owners), timeout=timeout_s)})
 
     def _replace(self, worker: int) -> None:
         self._stop(worker)

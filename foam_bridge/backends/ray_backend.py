@@ -31,7 +31,7 @@ from pathlib import Path
 from typing import Any
 
 from foam_bridge.backends.base import WORKER_DIED, Backend, NoRoomError, close_deadline_s, start_deadline_s
-from foam_bridge.backends.worker import EnvHost, Reply, Request
+from foam_bridge.backends.worker import EnvFactory, EnvHost, Reply, Request
 from foam_bridge.errors import ClusterError
 
 __all__ = ["CONNECT_TIMEOUT_S", "RAY_MIN_VERSION", "RayBackend",
@@ -105,9 +105,11 @@ class RayBackend(Backend):
     name = "ray"
 
     def __init__(
-        self, cfg: Any, num_envs: int, pool: int, work_dir: Path, ray_address: str | None = None
+        self, cfg: Any, num_envs: int, pool: int, work_dir: Path, ray_address: str | None = None,
+        make_env: EnvFactory | None = None,
     ) -> None:
         super().__init__(cfg, num_envs, pool)
+        self._make_env = make_env
         import ray
 
         _check_ray_version(ray.__version__)
@@ -130,7 +132,7 @@ class RayBackend(Backend):
 
     def _start(self, workers: list[int]) -> None:
         """Start actors for ``workers`` and wait (bounded) until each runs; NoRoomError if not."""
-        actors = [self._actor_class.remote(self.cfg, self.work_dir) for _ in workers]
+        actors = [self._actor_class.remote(self.cfg, self.work_dir, self._make_env) for _ in workers]
         deadline = start_deadline_s(self.cfg)
         try:
             started = self._ray.get([actor.where.remote() for actor in actors], timeout=deadline)
@@ -156,6 +158,13 @@ class RayBackend(Backend):
         except (exceptions.RayActorError, exceptions.WorkerCrashedError):
             pass
         return None
+
+    def _wait_ready(self, workers: list[int], timeout_s: float) -> list[int]:
+        """The workers whose oldest submitted batch is done (a dead actor's is done, with an error)."""
+        heads = {self._queues[worker][0][1]: worker for worker in workers}
+        done, _ = self._ray.wait(list(heads), num_returns=1, timeout=timeout_s)
+        done += self._ray.wait(list(heads), num_returns=len(heads), timeout=0)[0]
+        return sorted({heads[ref] for ref in done})
 
     def _death_cause(self, worker: int) -> str:
         """"node lost: IP/NODE" when the actor's node is gone, else "worker died"."""

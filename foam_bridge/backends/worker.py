@@ -16,12 +16,13 @@ from __future__ import annotations
 
 import os
 import traceback
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any, NamedTuple
 
 from foam_bridge.backends.reaper import kill_processes_under
 
-__all__ = ["BAD_INPUT_ERRORS", "METHODS", "EnvHost", "Reply", "Request", "env_dir"]
+__all__ = ["BAD_INPUT_ERRORS", "METHODS", "EnvFactory", "EnvHost", "Reply", "Request", "env_dir"]
 
 METHODS = ("reset", "step", "close")
 #: Exceptions that mean the config or case is unusable (every env would fail alike): not retried.
@@ -56,6 +57,11 @@ class Reply(NamedTuple):
     seq: int = 0
 
 
+#: Builds a worker's env: ``make_env(cfg, work_dir, env_id)``; None means FoamCaseEnv. It travels to the
+#: worker, so it must pickle (a module-level class or function); foam_bridge.standin's StandIn is one.
+EnvFactory = Callable[[Any, Path, int], Any]
+
+
 def env_dir(work_dir: Path, env_id: int) -> Path:
     """The case directory FoamCaseEnv(cfg, work_dir, env_id) uses (each env its own; nothing in the cwd)."""
     return Path(work_dir) / f"env_{env_id}"
@@ -64,17 +70,21 @@ def env_dir(work_dir: Path, env_id: int) -> Path:
 class EnvHost:
     """The FoamCaseEnv instances of one worker, created on demand, driven by Requests."""
 
-    def __init__(self, cfg: Any, work_dir: Path) -> None:
+    def __init__(self, cfg: Any, work_dir: Path, make_env: EnvFactory | None = None) -> None:
         self.cfg = cfg
         self.work_dir = Path(work_dir)
+        self.make_env = make_env
         self.envs: dict[int, Any] = {}
 
     def _env(self, env_id: int) -> Any:
         if env_id not in self.envs:
-            from foam_bridge.env import FoamCaseEnv  # imported here: the driver never needs it
-
             kill_processes_under(env_dir(self.work_dir, env_id))
-            self.envs[env_id] = FoamCaseEnv(self.cfg, work_dir=self.work_dir, env_id=env_id)
+            if self.make_env is not None:
+                self.envs[env_id] = self.make_env(self.cfg, self.work_dir, env_id)
+            else:
+                from foam_bridge.env import FoamCaseEnv  # imported here: the driver never needs it
+
+                self.envs[env_id] = FoamCaseEnv(self.cfg, work_dir=self.work_dir, env_id=env_id)
         return self.envs[env_id]
 
     def handle(self, request: Request) -> Reply:

@@ -1,0 +1,184 @@
+"""AsyncFoamEnv (foam_bridge.async_batch) and the stand-in solver (foam_bridge.standin), on the local pool.
+
+The stand-in sleeps milliseconds per step, so these run in seconds without OpenFOAM; the real solver
+goes through the same pool code (tests/test_foam_batched.py and friends cover it in lock-step).
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from foam_marks import needs_openfoam
+
+from foam_bridge.async_batch import AsyncFoamEnv
+from foam_bridge.batched import BatchedFoamEnv
+from foam_bridge.config import FoamEnvConfig
+from foam_bridge.standin import Profile, StandIn, StandInEnv
+
+CFG = FoamEnvConfig(mesh_scale=0.5)
+#: Episodes of 2, 3 and 4 steps (the last one partial: 50, 20 iterations), 5-10 ms per step.
+FAST = Profile(iterations=(150, 220, 400), seconds_per_iteration=(1e-4, 5e-5, 1e-4), reset_s=0.002)
+
+
+class FailingResets(StandIn):
+    """A stand-in whose env ``env_id`` fails its resets number ``failing`` (1 = the first) in a worker."""
+
+    def __init__(self, profile: Profile, env_id: int, failing: tuple[int, ...]) -> None:
+        super().__init__(profile)
+        self.env_id, self.failing = env_id, failing
+
+    def __call__(self, cfg: FoamEnvConfig, work_dir: Path, env_id: int) -> StandInEnv:
+        env = super().__call__(cfg, work_dir, env_id)
+        if env_id == self.env_id:
+            resets, reset = [0], env.reset
+
+            def failing_reset(*args, **kwargs):
+                resets[0] += 1
+                if resets[0] in self.failing:
+                    raise RuntimeError(f"reset {resets[0]} refused")
+                return reset(*args, **kwargs)
+
+            env.reset = failing_reset
+        return env
+
+
+def _episodes(infos: dict, ids: np.ndarray) -> list[tuple[int, dict]]:
+    """(env id, final info) of each row whose episode ended."""
+    mask = infos.get("_final_info", np.zeros(len(ids), bool))
+    ended = []
+    for row in np.flatnonzero(mask):
+        info = infos["final_info"]
+        ended.append((int(ids[row]), {key: info[key][row] for key in ("outcome", "cause", "iterations")}))
+    return ended
+
+
+def _run_async(env: AsyncFoamEnv, rounds: int) -> list[tuple[int, dict]]:
+    env.async_reset(seed=3)
+    ended = []
+    for _ in range(rounds):
+        ids, obs, reward, terminated, truncated, infos = env.recv()
+        assert len(set(ids.tolist())) == env.batch_size and obs.shape == (env.batch_size, 1)
+        ended += _episodes(infos, ids)
+        env.send(np.full((len(ids), 2), 0.5), ids)
+    return ended
+
+
+def test_the_standin_profile_fits_a_runs_episodes_and_its_env_sleeps_that_long():
+    csv = Path(__file__).parents[1] / "experiments/foam/train-mesh05/episodes.csv"
+    profile, raw = Profile.from_csv(csv, 757), Profile.from_csv(csv, 757, detrend=0)
+    assert len(profile.iterations) == 757 and profile.iterations == raw.iterations
+    assert 40 < profile.describe()["mean_last_step_iterations"] < 55  # RESULTS_train_foam: 47 of 100
+    spread = [np.std(p.seconds_per_iteration) / np.mean(p.seconds_per_iteration) for p in (profile, raw)]
+    assert spread[0] < 0.5 * spread[1]  # the machine's load over time taken out
+    env = StandInEnv(CFG, FAST, env_id=0)
+    env.reset(seed=1)
+    started, done, steps = time.monotonic(), False, 0
+    while not done:
+        _, reward, done, _, info = env.step([0.5, 0.5])
+        steps += 1
+    record = info["episode"]
+    assert record["iterations"] in FAST.iterations and steps == -(-record["iterations"] // 100)
+    assert record["return"] == -record["iterations"]
+    assert 0 < record["solver_time_s"] <= record["wall_time_s"] <= time.monotonic() - started
+
+
+def test_async_steps_every_env_and_its_episodes_are_the_lock_step_ones():
+    with AsyncFoamEnv(CFG, num_envs=4, batch_size=2, pool=2, seed=0, make_env=StandIn(FAST)) as env:
+        ended = _run_async(env, 40)
+    per_env = {i: [e["iterations"] for j, e in ended if j == i] for i in range(4)}
+    assert all(len(ks) >= 2 for ks in per_env.values()), per_env  # every env got its turns
+    assert {e["outcome"] for _, e in ended} == {"converged"}
+    # the same seed streams: each env's episodes are the ones the lock-step batch runs
+    with BatchedFoamEnv(CFG, num_envs=4, pool=2, seed=0, make_env=StandIn(FAST)) as batch:
+        batch.reset(seed=3)
+        lock = {i: [] for i in range(4)}
+        while min(len(ks) for ks in lock.values()) < max(len(ks) for ks in per_env.values()):
+            *_, infos = batch.step(np.full((4, 2), 0.5))
+            for i, e in _episodes(infos, np.arange(4)):
+                lock[i].append(e["iterations"])
+    assert all(lock[i][:len(ks)] == ks for i, ks in per_env.items())
+
+
+def test_an_ended_episode_comes_back_with_the_next_episodes_first_observation():
+    with AsyncFoamEnv(CFG, num_envs=3, batch_size=1, pool=1, seed=0, make_env=StandIn(FAST)) as env:
+        env.async_reset()
+        for _ in range(30):
+            ids, obs, reward, terminated, truncated, infos = env.recv()
+            if terminated[0]:
+                assert infos["_final_info"][0] and infos["final_obs"][0][0] == 0.0  # nothing left of it
+                assert obs[0, 0] == 1.0  # the new episode's start
+                assert reward[0] < 0
+            env.send([[0.5, 0.5]], ids)
+
+
+def test_a_killed_worker_ends_its_envs_episodes_and_the_batch_goes_on():
+    slow = Profile(iterations=(400,), seconds_per_iteration=(2e-3,), reset_s=0.002)  # 0.2 s steps
+    with AsyncFoamEnv(CFG, num_envs=4, batch_size=2, pool=2, seed=0, make_env=StandIn(slow)) as env:
+        env.async_reset()
+        victim = env.worker_pids()[1]  # hosts envs 1 and 3
+        ids, *_ = env.recv()
+        env.send(np.full((2, 2), 0.5), ids)
+        os.kill(victim, signal.SIGKILL)
+        crashed = []
+        for _ in range(6):
+            ids, _, _, terminated, _, infos = env.recv()
+            crashed += [(i, e) for i, e in _episodes(infos, ids) if e["outcome"] == "crashed"]
+            env.send(np.full((2, 2), 0.5), ids)
+        assert crashed and {i for i, _ in crashed} <= {1, 3}
+        assert all(e["cause"] == "worker died" for _, e in crashed)
+        assert env.worker_pids()[1] != victim  # replaced
+
+
+def test_a_failed_reset_is_retried_when_the_env_is_sent_as_the_lock_step_batch_does():
+    make = FailingResets(FAST, env_id=0, failing=(2,))  # env 0's first auto-reset fails, its retry works
+    with AsyncFoamEnv(CFG, num_envs=1, batch_size=1, pool=1, seed=0, make_env=make) as env:
+        env.async_reset()
+        seen = []
+        for _ in range(8):
+            ids, obs, reward, terminated, truncated, infos = env.recv()
+            seen.append((bool(terminated[0]), bool(truncated[0]), bool(infos.get("_final_info", [0])[0]),
+                         float(reward[0]), float(obs[0, 0])))
+            env.send([[0.5, 0.5]], ids)
+    ends = [i for i, (term, *_) in enumerate(seen) if term]
+    first = ends[0]
+    assert seen[first][2] and seen[first][4] == 0.0  # ended, with final info; obs stays the final one
+    assert seen[first + 1] == (False, True, False, 0.0, 1.0)  # the retry: a non-transition, new episode
+
+
+@needs_openfoam
+def test_the_real_solver_runs_asynchronously_and_reports_its_episodes():
+    # mesh 0.4, a 200-iteration cap: every episode is 2 steps of 100 iterations, converged or truncated
+    cfg = FoamEnvConfig(mesh_scale=0.4, max_iterations=200, step_timeout_s=60.0)
+    with AsyncFoamEnv(cfg, num_envs=1, batch_size=1, pool=1, seed=0) as env:  # one case build
+        env.async_reset()
+        ended = []
+        for _ in range(3):
+            ids, obs, reward, terminated, truncated, infos = env.recv()
+            assert obs.shape == (1, 1) and np.isfinite(obs).all()
+            ended += _episodes(infos, ids)
+            env.send([[0.9, 0.5]], ids)
+    assert ended and all(e["outcome"] in ("converged", "truncated") and 0 < e["iterations"] <= 200
+                         for _, e in ended)
+
+
+def test_the_caller_s_errors_are_one_line_value_errors():
+    with pytest.raises(ValueError, match="batch_size"):
+        AsyncFoamEnv(CFG, num_envs=2, batch_size=3, pool=1, make_env=StandIn(FAST))
+    with AsyncFoamEnv(CFG, num_envs=2, batch_size=1, pool=1, make_env=StandIn(FAST)) as env:
+        with pytest.raises(ValueError, match="async_reset"):
+            env.recv()
+        env.async_reset()
+        ids, *_ = env.recv()
+        with pytest.raises(ValueError, match="send"):
+            env.recv()
+        with pytest.raises(ValueError, match="env ids"):
+            env.send([[0.5, 0.5]], [1 - ids[0]])
+        with pytest.raises(ValueError, match="finite"):
+            env.send([[np.nan, 0.5]], ids)
+        env.send([[0.5, 0.5]], ids)
+        assert len(env.recv()[0]) == 1
