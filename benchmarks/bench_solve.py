@@ -3,7 +3,8 @@
     .venv/bin/python benchmarks/bench_solve.py pitzDaily airFoil2D backwardFacingStep2D --out /tmp/bench
 
 Prints one row per case: iterations and wall time of the controlled run and of the case's own settings,
-their ratios, solve's overhead beyond the solver's own work, and whether a fallback fired. Nothing is
+their ratios, solve's overhead beyond the solver's own work (and its fixed cost in seconds, with the
+phases of solve.json), and whether a fallback fired. Nothing is
 tuned on these cases. Appends the rows as JSON lines to OUT/rows.jsonl.
 """
 
@@ -34,6 +35,9 @@ def bench(name: str, root: Path) -> dict:
             "ratio_wall": round(own["ratio_wall_time"], 3),
             "ratio_cpu": round(own["ratio_solver_cpu_time"], 3),
             "overhead_pct": _percent(result["overhead_fraction"]),
+            # solve's fixed cost: its wall time beyond the controlled solver's busy time, and its phases
+            "fixed_s": round(result["wall_time_s"] - result["solver_busy_s"], 2),
+            "phases": {name: round(value, 2) for name, value in result.get("phases", {}).items()},
             "fallback": [event["kind"] for event in data["fallback"]], "fields_from": result["fields_from"]}
 
 

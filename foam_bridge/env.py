@@ -129,7 +129,11 @@ class FoamCaseEnv:
     env is also a context manager that closes itself.
     """
 
-    def __init__(self, cfg: FoamEnvConfig, work_dir: Path | str | None = None, env_id: int = 0) -> None:
+    def __init__(self, cfg: FoamEnvConfig, work_dir: Path | str | None = None, env_id: int = 0,
+                 base: tuple[Path, episode_case.CaseInfo] | None = None) -> None:
+        """``base``: the base case already built and checked by the caller (a directory that
+        :func:`foam_bridge.base_case.check_case` built from ``cfg`` and its CaseInfo): copied, not built and
+        dry-run again (jaxsimrl solve checks a case once)."""
         self.cfg = cfg = cfg.validate().with_absolute_paths()
         self.env_id = env_id
         self.openfoam = find_openfoam(cfg.openfoam_path)
@@ -140,7 +144,12 @@ class FoamCaseEnv:
         self.base = self.root / "base"
         self.case_dir = self.root / EPISODE_DIR
         try:
-            self.case_info = base_case.build_base_case(cfg, self.base, self.openfoam)
+            if base is None:
+                self.case_info = base_case.build_base_case(cfg, self.base, self.openfoam)
+            else:
+                shutil.rmtree(self.base, ignore_errors=True)  # a restarted worker's leftover
+                shutil.copytree(base[0], self.base, symlinks=True)
+                self.case_info = base[1]
         except BaseException:
             self._release_directories()
             raise

@@ -48,11 +48,14 @@ CASE_DEFAULT_FIELDS = ("convergence", "action_low", "action_high")
 
 
 def case_defaults(cfg: FoamEnvConfig, openfoam: OpenFOAM | None = None,
-                  fields: Iterable[str] = CASE_DEFAULT_FIELDS) -> dict[str, Any]:
+                  fields: Iterable[str] = CASE_DEFAULT_FIELDS,
+                  checked: tuple[Path, CaseInfo] | None = None) -> dict[str, Any]:
     """The case's own values of ``fields`` (some of CASE_DEFAULT_FIELDS) for ``cfg.case_dir``.
 
     Checks the case as an env does at creation (mesh and one SIMPLE iteration, in a temporary copy):
     one-line CaseError if it cannot run, or if the criterion is wanted and it has no residualControl.
+    ``checked``: the case as :func:`check_case` already built it (its directory and CaseInfo), not
+    checked again.
     """
     if cfg.case_dir is None:
         raise ValueError("case_defaults: the built-in case has the paper's defaults (case_dir is None)")
@@ -60,8 +63,10 @@ def case_defaults(cfg: FoamEnvConfig, openfoam: OpenFOAM | None = None,
     check_case_files(source, cfg, need_mesh=False)  # a wrong path says so, OpenFOAM or not
     openfoam = openfoam or find_openfoam(cfg.openfoam_path)
     with tempfile.TemporaryDirectory(prefix="foam_bridge_defaults_") as scratch:
-        info = check_case(source, cfg, openfoam, Path(scratch))
-        solution = foamdict.expand(openfoam, Path(scratch) / "checked", "system/fvSolution")
+        if checked is None:
+            checked = (Path(scratch) / "checked", check_case(source, cfg, openfoam, Path(scratch)))
+        info = checked[1]
+        solution = foamdict.expand(openfoam, checked[0], "system/fvSolution")
     wanted = set(fields)
     values: dict[str, Any] = {}
     if "convergence" in wanted:

@@ -28,6 +28,8 @@ from foam_bridge.config import FoamEnvConfig
 from foam_bridge.openfoam import BRIDGE_MARK
 from jaxsimrl import load_policy
 from jaxsimrl.solve import DEFAULT_CONTROLLER, Controller, solve_case
+from jaxsimrl.solve.controller import policy_env_config
+from jaxsimrl.solve.settings import solve_config
 from jaxsimrl.solve.watchdog import Watchdog
 
 TUTORIALS = Path("/usr/share/doc/openfoam-examples/examples/incompressible/simpleFoam")
@@ -133,6 +135,23 @@ def test_solve_pitz_daily_gives_a_normal_converged_case(tmp_path: Path) -> None:
     assert math.isclose(own["ratio_iterations"], result["iterations"] / own["iterations"])
     assert (out / result["time_directory"] / "U").is_file() and (out / "log.simpleFoam").is_file()
     _check_normal_case(out, result["time_directory"])
+
+
+def test_the_controlled_run_starts_from_the_check_build(tmp_path: Path) -> None:
+    case = _coarse_step(tmp_path / "step")
+    work = tmp_path / "work"
+    cfg, checked = solve_config(case, policy_env_config(None), work, 300, 0.9, None, 120.0)
+    assert checked.directory == work / "checked"
+    assert (checked.directory / "constant" / "polyMesh" / "boundary").is_file()
+    assert checked.info.solved_fields and cfg.convergence == {"U": 1e-3, "p": 5e-2, "k": 1e-3, "omega": 1e-3}
+    (checked.directory / "built-by-the-check").write_text("")  # not in the user's case: a rebuild loses it
+    env = checked(cfg, work, 0)
+    try:
+        assert (env.base / "built-by-the-check").is_file() and env.case_info == checked.info
+        obs, info = env.reset(seed=0)
+        assert obs.shape == tuple(env.observation_space_spec.shape) and info["iterations"] == 0
+    finally:
+        env.close()
 
 
 def test_a_bad_controller_is_rescued_by_the_case_own_settings(tmp_path: Path) -> None:

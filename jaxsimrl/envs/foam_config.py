@@ -13,10 +13,14 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Iterable, Mapping
-from typing import Any
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from foam_bridge.config import FoamEnvConfig
 from foam_bridge.errors import OpenFOAMNotFoundError
+
+if TYPE_CHECKING:
+    from foam_bridge.episode_case import CaseInfo
 
 #: Fields of the built-in case's geometry only: a user's case keeps its own mesh.
 BUILTIN_ONLY = ("mesh_scale", "step_height")
@@ -29,9 +33,11 @@ def builtin_only_set(section: Mapping[str, Any]) -> list[str]:
     return [name for name in BUILTIN_ONLY if name in section and section[name] != getattr(defaults, name)]
 
 
-def user_case_config(cfg: FoamEnvConfig, explicit: Iterable[str]) -> FoamEnvConfig:
+def user_case_config(cfg: FoamEnvConfig, explicit: Iterable[str],
+                     checked: tuple[Path, CaseInfo] | None = None) -> FoamEnvConfig:
     """``cfg`` of a user's case with the case's own convergence criterion and action box, for each of
-    them not in ``explicit`` (the fields the user set); one-line CaseError if the case cannot run."""
+    them not in ``explicit`` (the fields the user set); one-line CaseError if the case cannot run.
+    ``checked``: the case already built and checked (foam_bridge.user_case.case_defaults)."""
     from foam_bridge.user_case import CASE_DEFAULT_FIELDS, case_defaults
 
     given = set(explicit)
@@ -41,7 +47,7 @@ def user_case_config(cfg: FoamEnvConfig, explicit: Iterable[str]) -> FoamEnvConf
     if not wanted:  # nothing to read: no OpenFOAM needed here (e.g. a Ray driver without it)
         return cfg.validate()
     try:
-        own = case_defaults(cfg, fields=wanted)
+        own = case_defaults(cfg, fields=wanted, checked=checked)
     except OpenFOAMNotFoundError as err:
         raise OpenFOAMNotFoundError(f"{err} (it reads the case's own criterion and action box; without "
                                     f"OpenFOAM here, set convergence, action_low and action_high in "

@@ -4,15 +4,16 @@ The env spec is rebuilt from the run's config.json (:mod:`jaxsimrl.policy.spec`)
 PPO config, and only the two parts of the checkpoint that acting needs (network parameters and
 observation statistics) are read, as saved, onto one device. A run written by an older version
 therefore loads as long as those two still fit the network its config describes; otherwise the error
-is one line saying what does not fit. ``kind`` is the class built (a :class:`TrainedPolicy` or a
-subclass, e.g. :class:`jaxsimrl.introspect.LoadedPolicy`, which adds rollouts).
+is one line saying what does not fit. A run with an up-to-date ``acting.npz`` (jaxsimrl.policy.arrays:
+the shipped controller) is read from it, without orbax. ``kind`` is the class built (a
+:class:`TrainedPolicy` or a subclass, e.g. :class:`jaxsimrl.introspect.LoadedPolicy`, which adds rollouts).
 """
 
 from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
-from typing import Any, NamedTuple, TypeVar
+from typing import TYPE_CHECKING, Any, NamedTuple, TypeVar
 
 import jax
 import jax.numpy as jnp
@@ -21,10 +22,13 @@ import numpy as np
 from jaxsimrl.agents.ppo.config import PPOConfig
 from jaxsimrl.agents.ppo.normalizer import NormalizerState
 from jaxsimrl.agents.ppo.policy import Policy, PolicyParams
+from jaxsimrl.policy.arrays import read_acting_arrays
 from jaxsimrl.policy.spec import EnvSpec, env_spec
 from jaxsimrl.policy.trained import TrainedPolicy
-from jaxsimrl.runs.checkpoint import Checkpoints
 from jaxsimrl.runs.run_dir import RunDir
+
+if TYPE_CHECKING:
+    from jaxsimrl.runs.checkpoint import Checkpoints
 
 P = TypeVar("P", bound=TrainedPolicy)
 
@@ -88,10 +92,23 @@ def _restore(run_dir: str | Path, checkpoint: int | None) -> _Saved:
     record = run.read_config()
     config = _config_of(run.config, record)
     spec = env_spec(record)
+    exported = read_acting_arrays(run, checkpoint)  # the checkpoint's acting arrays, if exported
+    if exported is None:
+        step, tree, meta = _restore_checkpoint(run, checkpoint)
+    else:
+        step, tree, meta = exported
+        tree = jax.tree.map(jnp.asarray, tree)  # on the device, as orbax restores them
+    return _Saved(run, record, config, spec, tree, meta, step)
+
+
+def _restore_checkpoint(run: RunDir, checkpoint: int | None) -> tuple[int, Any, dict[str, Any]]:
+    """(step, tree, meta) restored by orbax (imported here: a run with acting.npz never needs it)."""
+    from jaxsimrl.runs.checkpoint import Checkpoints
+
     with Checkpoints(run.checkpoints, writable=False) as checkpoints:
         step = _pick_checkpoint(checkpoints, checkpoint)
         tree, meta = checkpoints.restore_as_saved(step)
-    return _Saved(run, record, config, spec, tree, meta, step)
+    return step, tree, meta
 
 
 def _config_of(path: Path, record: dict[str, Any]) -> PPOConfig:

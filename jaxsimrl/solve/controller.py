@@ -8,8 +8,10 @@ use (:class:`BackgroundLoad` overlaps it with the case checks): the solver runs 
 
 from __future__ import annotations
 
+import contextlib
 import json
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -74,25 +76,48 @@ def policy_env_config(path: str | Path | None) -> Any:
     return foam_config_from_json(record["foam"])
 
 
-class BackgroundLoad:
-    """:func:`load_controller` in a thread (importing JAX and reading the checkpoint take seconds, which
-    the case checks' subprocesses overlap); :meth:`result` waits and re-raises its error."""
+def warm_up(policy: Any) -> None:
+    """Compile the policy's action for one observation now (the jitted forward pass compiles on its
+    first call, ~0.7 s), so that the first real action costs what every later one does."""
+    import numpy as np
 
-    def __init__(self, path: str | Path | None) -> None:
+    policy.act(np.zeros(policy.obs_dim, np.float32), None, deterministic=True)
+
+
+class BackgroundLoad:
+    """:func:`load_controller` and its :func:`warm_up` in a thread (importing JAX, reading the
+    parameters and compiling the first action take seconds, which the case checks' subprocesses and the
+    worker's start overlap); :meth:`result` waits and re-raises its error. Then, while the solver runs,
+    the thread imports what the report draws with (``then``), off the end of the run."""
+
+    def __init__(self, path: str | Path | None, then: Callable[[], Any] | None = None) -> None:
         self._path = path
+        self._then = then
         self._result: Controller | None = None
         self._error: BaseException | None = None
-        self._thread = threading.Thread(target=self._load, name="solve-load-controller", daemon=True)
+        self._ready = threading.Event()
+        # not a daemon: a process that exits (bad input, Ctrl-C) while the thread is inside XLA's compiler
+        # aborts (SIGABRT, "exception not rethrown"); the exit waits for the load to end instead
+        self._thread = threading.Thread(target=self._load, name="solve-load-controller", daemon=False)
         self._thread.start()
 
     def _load(self) -> None:
         try:
-            self._result = load_controller(self._path)
+            loaded = load_controller(self._path)
+            warm_up(loaded.policy)
+            self._result = loaded
         except BaseException as err:  # noqa: BLE001 - handed to the caller by result()
             self._error = err
+            return
+        self._ready.set()
+        if self._then is not None:
+            with contextlib.suppress(Exception):  # only a head start: the report does it again if need be
+                self._then()
 
     def result(self) -> Controller:
-        self._thread.join()
+        while not self._ready.wait(0.05):  # not join(): the thread goes on with ``then``
+            if not self._thread.is_alive():
+                break
         if self._error is not None:
             raise self._error
         assert self._result is not None

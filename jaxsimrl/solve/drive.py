@@ -35,17 +35,19 @@ class ControlledRun:
 
 def drive(cfg: FoamEnvConfig, policy: Callable[[], Any], fallback: list[float],
           obs_factor: Callable[[float], float], watchdog: WatchdogSettings,
-          say: Callable[[str], None]) -> ControlledRun:
+          say: Callable[[str], None], make_env: Callable[[Any, Path, int], Any] | None = None
+          ) -> ControlledRun:
     """Run one episode of ``cfg`` with the policy ``policy()`` returns (its deterministic action; asked
     for once the worker has built the case, so that loading it overlaps that), switching to ``fallback``
     when the watchdog fires. Bad input (the env rejects the case): one-line ValueError. ``cfg``'s case
-    must have been checked already (jaxsimrl.solve.settings.solve_config does)."""
+    must have been checked already (jaxsimrl.solve.settings.solve_config does); ``make_env`` builds the
+    worker's env (jaxsimrl.solve.settings.CheckedCase: from that check's build)."""
     from foam_bridge.backends import BAD_INPUT_ERRORS, Request
     from foam_bridge.backends.local import LocalBackend
 
     run = ControlledRun()
     started = time.monotonic()
-    backend = LocalBackend(cfg, 1, 1, Path(cfg.work_dir), checked=True)
+    backend = LocalBackend(cfg, 1, 1, Path(cfg.work_dir), checked=True, make_env=make_env)
     try:
         reply = backend.run([Request(0, "reset", {"seed": 0})])[0]
         if not reply.ok:

@@ -152,13 +152,19 @@ def write_report(out: Path, report: SolveReport) -> None:
     atomic_write_json(out / SOLVE_JSON, report.data)
 
 
+def preload_plotting() -> None:
+    """Import matplotlib (~1 s) ahead of :func:`plot_png`, e.g. in a thread while the solver runs."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot  # noqa: F401
+
+
 def plot_png(data: dict[str, Any]) -> bytes:
     """Residual histories (log scale) over the factors the controller used, as PNG bytes."""
     import io
 
-    import matplotlib
-
-    matplotlib.use("Agg")
+    preload_plotting()
     import matplotlib.pyplot as plt
 
     figure, (top, bottom) = plt.subplots(2, 1, figsize=(8, 7), sharex=True, height_ratios=(2, 1))

@@ -22,9 +22,10 @@ from foam_bridge.export import export_case
 from jaxsimrl.solve.controller import BackgroundLoad, Controller, as_controller, policy_env_config
 from jaxsimrl.solve.drive import ControlledRun, drive
 from jaxsimrl.solve.own import OwnProcess, OwnRun
-from jaxsimrl.solve.report import SolveReport, build_report, write_report, write_status
+from jaxsimrl.solve.report import SolveReport, build_report, preload_plotting, write_report, write_status
 from jaxsimrl.solve.settings import (
     DEFAULT_MAX_ITERATIONS,
+    CheckedCase,
     not_applicable,
     observation_factor,
     own_action,
@@ -104,21 +105,25 @@ def _solve(case: Path, out: Path, policy: Any, compare: bool, constant: Sequence
            max_iterations: int | None, confirm: float | None, watchdog: WatchdogSettings,
            env: tuple[Any, float, str], say: Callable[[str], None], started: float,
            others: list[OwnProcess]) -> SolveReport:
+    # What waits on what: the controller loads (JAX, its acting arrays, the first action compiled) in a
+    # thread from here on, beside the case check (copy, mesh, one SIMPLE iteration: once, the controlled
+    # run's env starts from its build) and the worker's start; the first step waits for both, every
+    # later one only for the solver. Then the thread imports the report's plotting.
     phases: dict[str, float] = {}
     mark = time.monotonic()
     policy = as_controller(policy)
-    loading = None if isinstance(policy, Controller) else BackgroundLoad(policy)
+    loading = None if isinstance(policy, Controller) else BackgroundLoad(policy, then=preload_plotting)
     trained = policy.policy.env_params if isinstance(policy, Controller) else policy_env_config(policy)
     settings = read_case_settings(case)
     budget = max_iterations or settings.budget or DEFAULT_MAX_ITERATIONS
-    cfg = solve_config(case, trained, out / WORK_DIR, budget, confirm, *env)
+    cfg, checked = solve_config(case, trained, out / WORK_DIR, budget, confirm, *env)
     phases["case_check_s"], mark = time.monotonic() - mark, time.monotonic()
     parallel = len(os.sched_getaffinity(0)) >= 2  # else the runs would share one core: one after the other
     comparisons = _start_comparisons(case, out, compare, constant, settings.flat, others) if parallel else {}
     say(f"solve {case}: criterion {dict(cfg.convergence)}, box {cfg.action_low}-{cfg.action_high}, "
         f"budget {budget} iterations")
     controller = policy if loading is None else loading
-    run = _controlled(cfg, trained, settings, controller, watchdog, say)
+    run = _controlled(cfg, trained, settings, controller, watchdog, say, checked)
     controller = controller if loading is None else loading.result()
     phases["controlled_run_s"], mark = time.monotonic() - mark, time.monotonic()
     rescue = None
@@ -139,7 +144,7 @@ def _solve(case: Path, out: Path, policy: Any, compare: bool, constant: Sequence
 
 
 def _controlled(cfg: Any, trained: Any, settings: Any, controller: Any, watchdog: WatchdogSettings,
-                say: Callable[[str], None]) -> ControlledRun:
+                say: Callable[[str], None], checked: CheckedCase) -> ControlledRun:
     """The controlled run, or none (outcome "not run") when the controller does not apply to the case.
     ``controller``: a Controller, or its BackgroundLoad (waited for once the worker has built the case)."""
     skip = not_applicable(trained, settings)
@@ -151,7 +156,8 @@ def _controlled(cfg: Any, trained: Any, settings: Any, controller: Any, watchdog
         return (controller if isinstance(controller, Controller) else controller.result()).policy
 
     fallback = own_action(settings, cfg, len(cfg.action_low))
-    return drive(cfg, policy, fallback, lambda speed: observation_factor(trained, speed), watchdog, say)
+    return drive(cfg, policy, fallback, lambda speed: observation_factor(trained, speed), watchdog, say,
+                 checked)
 
 def _start_comparisons(case: Path, out: Path, compare: bool, constant: Sequence[float] | None, flat: bool,
                        others: list[OwnProcess]) -> dict[str, OwnProcess]:

@@ -39,6 +39,21 @@ class CaseSettings:
     variant: str = "SIMPLE"
 
 
+@dataclass(frozen=True)
+class CheckedCase:
+    """A user's case as solve's check built it (its directory, meshed, and its CaseInfo); called with
+    ``(cfg, work_dir, env_id)`` it is the controlled run's env, which starts from that build. It travels
+    to the worker process (foam_bridge's ``make_env``), so it stays a picklable module-level class."""
+
+    directory: Path
+    info: Any
+
+    def __call__(self, cfg: FoamEnvConfig, work_dir: Path, env_id: int) -> Any:
+        from foam_bridge.env import FoamCaseEnv
+
+        return FoamCaseEnv(cfg, work_dir=work_dir, env_id=env_id, base=(self.directory, self.info))
+
+
 def read_case_settings(case: Path) -> CaseSettings:
     """Read the case's relaxation factors and budget as OpenFOAM expands them (on a scratch copy)."""
     from foam_bridge import foamdict
@@ -110,9 +125,17 @@ def _budget(control: dict[str, Any]) -> int | None:
 
 def solve_config(case: Path, policy_cfg: FoamEnvConfig, work: Path, max_iterations: int,
                  confirm_alpha_u: float | None, action_box: tuple[Sequence[float], Sequence[float]] | None,
-                 step_timeout_s: float, inlet_patch: str = "inlet") -> FoamEnvConfig:
-    """The env config of the controlled run (see the module docstring); one-line CaseError/ValueError if
-    the bridge cannot drive the case."""
+                 step_timeout_s: float, inlet_patch: str = "inlet") -> tuple[FoamEnvConfig, CheckedCase]:
+    """The env config of the controlled run (see the module docstring) and the case as its check built
+    it (``work/checked`` and its CaseInfo: the controlled run's env starts from it instead of building
+    and dry-running the case again); one-line CaseError/ValueError if the bridge cannot drive the case.
+
+    Starting from the check's build is safe: the check builds exactly what the env would (the same
+    copy, mesh and dry run, foam_bridge.base_case.check_case), from this config before the case's own
+    criterion and box are applied, and neither enters the build (the dry run relaxes with the case's own
+    factors, or the box's lower corner, which is the built-in one for a case without own factors)."""
+    from foam_bridge.base_case import check_case, check_case_files
+    from foam_bridge.openfoam import find_openfoam
     from jaxsimrl.envs.foam_config import user_case_config
 
     copied = {name: getattr(policy_cfg, name) for name in POLICY_FIELDS if hasattr(policy_cfg, name)}
@@ -126,7 +149,10 @@ def solve_config(case: Path, policy_cfg: FoamEnvConfig, work: Path, max_iteratio
     if action_box is not None:
         cfg = dataclasses.replace(cfg, action_low=tuple(action_box[0]), action_high=tuple(action_box[1]))
         explicit = ["action_low", "action_high"]
-    return user_case_config(cfg, explicit)
+    check_case_files(case, cfg, need_mesh=False)  # a wrong path says so, OpenFOAM or not
+    info = check_case(case, cfg, find_openfoam(cfg.openfoam_path), work)
+    checked = CheckedCase(work / "checked", info)
+    return user_case_config(cfg, explicit, checked=(checked.directory, checked.info)), checked
 
 
 def own_action(settings: CaseSettings, cfg: FoamEnvConfig, size: int) -> list[float]:
