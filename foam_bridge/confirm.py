@@ -91,16 +91,17 @@ def _checked_fields(cfg: FoamEnvConfig, turbulence: Sequence[str] | None = None)
 
 def confirm(episode: Path, base: Path, cfg: FoamEnvConfig, openfoam: OpenFOAM, iteration: int,
             alpha_p: float, solver_residuals: dict[str, float], flat: bool = False,
-            alpha_t: float | None = None, turbulence: Sequence[str] | None = None) -> Confirmation:
+            turbulence: Sequence[str] | None = None) -> Confirmation:
     """Check the fields the episode case wrote at ``iteration`` at alpha_u = ``cfg.confirm_alpha_u``
     (``flat``: the case's relaxationFactors use the old flat layout; ``turbulence``: the fields alpha_t
-    relaxes when it is an action, see case.relaxation_text; they are checked at ``confirm_alpha_u``,
-    whatever the step's ``alpha_t`` was, which is only accepted for the callers' symmetry)."""
+    relaxes when it is an action, see case.relaxation_text). When alpha_t is an action they are relaxed
+    at ``confirm_alpha_u`` too, whatever the step's alpha_t was; otherwise at the env's fixed factor."""
     assert cfg.confirm_alpha_u is not None
     started = time.monotonic()
     scratch = episode.parent / CHECK_DIR
-    fixed_t = cfg.confirm_alpha_u if cfg.k_omega_relaxation == K_OMEGA_ACTION else alpha_t
-    text = episode_case.relaxation_text(cfg, cfg.confirm_alpha_u, alpha_p, flat, fixed_t, turbulence)
+    # the third factor is read only with alpha_t an action (relaxation_text): the agent's own is not used
+    fixed = cfg.confirm_alpha_u
+    text = episode_case.relaxation_text(cfg, fixed, alpha_p, flat, fixed, turbulence)
     parser = LogParser(episode_case.CELLS_FUNCTION, episode_case.INLET_FUNCTION, cfg.divergence_threshold)
     error = ""
     try:

@@ -362,8 +362,7 @@ class FoamCaseEnv:
             if outcome != "converged" and not at_boundary:
                 return outcome, cause, iterations
             check = confirm(self.case_dir, self.base, self.cfg, self.openfoam, iterations, float(alpha[1]),
-                            self._residuals(), self.case_info.flat_relaxation,
-                            float(alpha[2]) if len(alpha) == 3 else None, self._turbulence)
+                            self._residuals(), self.case_info.flat_relaxation, self._turbulence)
             self._episode["confirmations"].append(check.record())
             if check.passed:
                 self._stop_solver()
