@@ -239,7 +239,8 @@ def test_runner_stops_on_a_case_the_env_rejects(monkeypatch):
 
 
 def test_an_episode_keeps_its_uid_whatever_else_the_command_evaluates():
-    from jaxsimrl.evaluation.foam_eval import DEFAULT_CONTROLLERS, plan
+    from jaxsimrl.evaluation.foam_eval import plan
+    from jaxsimrl.evaluation.foam_eval_spec import DEFAULT_CONTROLLERS
 
     repeats = {c: c in ("learned_stochastic", "random") for c in DEFAULT_CONTROLLERS}
     small = plan(["h"], [50.0], repeats, 2)
@@ -317,7 +318,7 @@ def test_bad_input_is_one_line_exit_2(capsys, tmp_path, saved_run, case):
 
 
 def test_best_constant_of_a_grid_csv_is_its_fastest_converged_cell(tmp_path):
-    from jaxsimrl.evaluation.foam_eval import baseline_from_csv
+    from jaxsimrl.evaluation.foam_baseline import baseline_from_csv
 
     cells = [GridCell(0.95, 0.95, 260, "converged", 1.0), GridCell(0.9, 0.95, 250, "converged", 1.0),
              GridCell(0.5, 0.5, 90, "crashed", 1.0), GridCell(0.7, 0.7, 1000, "truncated", 1.0)]
@@ -464,7 +465,7 @@ def _run_directly(cfg, uid, factors, case_copy):
 def test_a_subset_of_controllers_runs_only_those_and_the_same_episodes(evaluation, saved_run, tmp_path):
     from foam_bridge.config import without_convergence_test
     from foam_bridge.fields import relative_l2
-    from jaxsimrl.evaluation.foam_eval import REFERENCE, episode_uid
+    from jaxsimrl.evaluation.foam_eval_spec import REFERENCE, episode_uid
 
     full_out, full = evaluation
     out = tmp_path / "subset"

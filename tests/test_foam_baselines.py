@@ -106,7 +106,7 @@ def test_conditions_round_trip_through_grid_csv_and_old_files_still_load(tmp_pat
 
 
 def test_eval_foams_baseline_of_a_family_grid_is_the_family_best(tmp_path):
-    from jaxsimrl.evaluation.foam_eval import baseline_from_csv
+    from jaxsimrl.evaluation.foam_baseline import baseline_from_csv
 
     cells = grid({(0.9, 0.5): [(100, "converged"), (300, "converged")],
                   (0.9, 0.9): [(300, "converged"), (100, "converged")],
@@ -148,7 +148,8 @@ def test_the_oracle_keeps_each_cases_best_run_and_the_grids_cost():
 def test_the_oracles_axes_and_the_defaults_k_omega_factor():
     from types import SimpleNamespace
 
-    from jaxsimrl.evaluation.foam_eval import TUTORIAL_DEFAULTS, as_action
+    from jaxsimrl.evaluation.foam_baseline import as_action
+    from jaxsimrl.evaluation.foam_eval_spec import TUTORIAL_DEFAULTS
     from jaxsimrl.evaluation.foam_oracle import oracle_axes, oracle_cells
 
     three = FoamEnvConfig(relax_k_omega="action", action_low=(0.2, 0.2, 0.2), action_high=(0.95, 0.95, 0.95))

@@ -132,7 +132,7 @@ def test_grid_foam_3d_and_eval_foam_of_a_3_action_policy(family_run, tmp_path, c
 
 
 def test_a_3d_grid_best_cell_is_refused_for_a_2_action_policy(tmp_path):
-    from jaxsimrl.evaluation.foam_eval import as_action
+    from jaxsimrl.evaluation.foam_baseline import as_action
 
     two = FoamEnvConfig().validate()
     assert as_action(two, (0.9, 0.8)) == (0.9, 0.8)

@@ -20,7 +20,7 @@ from jaxsimrl.cli.errors import fail, positive_float, positive_int, seed_type
 def register(subparsers: Any) -> None:
     """Add the ``eval-foam`` subcommand."""
     from jaxsimrl.cli.foam import add_confirm_argument, relaxation_factor
-    from jaxsimrl.evaluation.foam_eval import CONTROLLERS, DEFAULT_CONTROLLERS
+    from jaxsimrl.evaluation.foam_eval_spec import CONTROLLERS, DEFAULT_CONTROLLERS
 
     parser = subparsers.add_parser(
         "eval-foam", help="evaluate a train-foam policy against constant, default and random factors",
@@ -93,7 +93,8 @@ def _check_openfoam() -> None:
 
 def run_eval_foam(args: argparse.Namespace) -> int:
     """Run the evaluation; print progress and the table of results."""
-    from jaxsimrl.evaluation.foam_eval import EvalSpec, evaluate_foam
+    from jaxsimrl.evaluation.foam_eval import evaluate_foam
+    from jaxsimrl.evaluation.foam_eval_spec import EvalSpec
 
     spec = EvalSpec(run_dir=Path(args.run_dir), velocities=tuple(args.velocities),
                     step_heights=None if args.step_height is None else tuple(args.step_height),

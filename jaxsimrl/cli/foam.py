@@ -207,7 +207,7 @@ def _plot_conditions(cells: list[Any], cfg: Any, args: argparse.Namespace, out: 
     with the stem grid_<geometry>_V<v>; returns the file names."""
     from foam_bridge.grid import plot_grid, plot_grid_slices
     from jaxsimrl.evaluation.family import conditions
-    from jaxsimrl.evaluation.foam_eval import geometry_name
+    from jaxsimrl.evaluation.foam_eval_spec import geometry_name
 
     factor = cfg.k_omega_relaxation
     k_omega = ("" if args.alpha_t else "k/omega follow alpha_u, " if isinstance(factor, str)
