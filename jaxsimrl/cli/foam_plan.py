@@ -110,7 +110,6 @@ def _check_no_anneal(ppo: Any) -> None:
 
 # ---- the plan: everything resolved before anything heavy starts (a jaxsimrl.training.foam.FoamPlan) ----
 def fresh_plan(args: argparse.Namespace) -> FoamPlan:
-    from foam_bridge.backends import validate_pool
     from jaxsimrl.agents.ppo.config import PPOConfig
     from jaxsimrl.runs.run_dir import RunDir
 
@@ -120,6 +119,8 @@ def fresh_plan(args: argparse.Namespace) -> FoamPlan:
     flags = {name: getattr(args, name) for name, _, _ in KNOBS if getattr(args, name) is not None}
     if args.init_action is not None:
         flags["init_action"] = tuple(args.init_action)
+    if getattr(args, "async_envs", None) is not None:
+        flags["async_envs"] = args.async_envs
     try:
         foam = _foam_config(args, extra.get("foam", {}))
         ppo_values = {**foam_ppo_defaults(num_envs, foam.reward), **extra.get("ppo", {}), **flags}
@@ -129,7 +130,7 @@ def fresh_plan(args: argparse.Namespace) -> FoamPlan:
         ppo_values["total_steps"] = total_steps_for(episodes, ppo_values["steps_per_update"], num_envs, foam)
         ppo = PPOConfig.from_dict(ppo_values)
         _check_init_action(ppo, foam)
-        pool = validate_pool(num_envs, args.pool)
+        pool = _pool(ppo, args.pool)
     except (TypeError, ValueError) as err:
         raise UsageError(f"invalid config: {err}") from None
     if ppo.updates_per_chunk != 1:
@@ -148,6 +149,23 @@ def fresh_plan(args: argparse.Namespace) -> FoamPlan:
         ppo = _carry_policy_settings(init_from, ppo, given=set(extra.get("ppo", {})) | set(flags))
     return FoamPlan(ppo, foam, episodes, 0 if args.seed is None else args.seed, pool,
                     args.backend or "local", args.ray_address, out, resume=False, init_from=init_from)
+
+
+def _pool(ppo: Any, pool: int | None) -> int:
+    """The pool size: at most one worker per env (all async_envs of an asynchronous batch); by default
+    one per env of the learner's batch (num_envs), up to the CPU count."""
+    from foam_bridge.backends import validate_pool
+
+    if pool is None:
+        return validate_pool(ppo.num_envs)
+    return validate_pool(ppo.async_envs or ppo.num_envs, pool)
+
+
+def _check_async_envs(asked: int | None, ppo: Any, run: Path) -> None:
+    """--async-envs on --resume: only the run's own (the batch's shape is part of its checkpoints)."""
+    if asked is not None and asked != ppo.async_envs:
+        raise UsageError(f"--async-envs {asked} differs from {run}'s ({ppo.async_envs}): a resumed run keeps "
+                         f"its batch")
 
 
 def _check_ray_address(backend: str, address: str | None, run: Path | None = None) -> None:
@@ -272,7 +290,6 @@ def _user_case(cfg: Any, args: argparse.Namespace, extra: dict[str, Any]) -> Any
 
 
 def resume_plan(args: argparse.Namespace) -> FoamPlan:
-    from foam_bridge.backends import validate_pool
     from foam_bridge.config import FoamEnvConfig
     from jaxsimrl.agents.ppo.config import PPOConfig
     from jaxsimrl.envs.foam_episodes import EPISODES_FILE, EpisodeLog
@@ -292,9 +309,10 @@ def resume_plan(args: argparse.Namespace) -> FoamPlan:
             raise ValueError(f"{run.path} is not a train-foam run (env {record.get('env')!r})")
         ppo = PPOConfig.from_dict(record["ppo"])
         foam = FoamEnvConfig.from_json(record["foam"])
-        pool = validate_pool(ppo.num_envs, args.pool or record.get("pool"))
+        pool = _pool(ppo, args.pool or record.get("pool"))
     except (KeyError, TypeError, ValueError) as err:
         raise UsageError(f"cannot resume: {err}") from None
+    _check_async_envs(getattr(args, "async_envs", None), ppo, run.path)
     _check_no_anneal(ppo)
     backend = args.backend or record.get("backend", "local")
     _check_ray_address(backend, args.ray_address, run.path)

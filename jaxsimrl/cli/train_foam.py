@@ -43,7 +43,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "through one io_callback per step.")
     p.add_argument("--pool", type=positive_int, default=None, help="worker processes (the paper: 4, 8, 16; "
                    "default: min(num_envs, CPUs)); may change on --resume")
-    p.add_argument("--num-envs", type=positive_int, help="parallel cases (default: = --pool)")
+    p.add_argument("--num-envs", type=positive_int, help="parallel cases (default: = --pool); with "
+                   "--async-envs, the cases the learner takes per step")
+    p.add_argument("--async-envs", type=positive_int, metavar="E", help="an asynchronous batch "
+                   "(EnvPool-style): E > --num-envs cases on the pool, each learner step takes the "
+                   "--num-envs that are ready first, so no worker waits for the slowest case (default: "
+                   "lock-step, every case every step); a resume replays no steps in flight, it starts new "
+                   "episodes")
     p.add_argument("--episodes", type=positive_int, help="episodes to train for (default 2000, the paper); "
                    "training stops after the update in which the target is reached, so the episodes that "
                    "also end in that update are kept too; with --resume it may be raised")

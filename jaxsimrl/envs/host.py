@@ -126,13 +126,17 @@ class HostVecEnv:
         return jax.ShapeDtypeStruct((self.num_envs, self.obs_dim), jnp.float32)
 
     def _host_reset(self, keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        obs = np.zeros((self.num_envs, self.obs_dim), np.float32)
+        obs, state = np.zeros((self.num_envs, self.obs_dim), np.float32), np.zeros(self.num_envs, np.int32)
         if self.error is None:
             try:
-                obs = self._obs(self.batch.reset(seed=seed_of(keys))[0])
+                obs, state = self._reset(seed_of(keys))
             except Exception as err:  # noqa: BLE001 - reported by raise_if_failed, after the call
                 self._fail(err)
-        return obs, np.zeros(self.num_envs, np.int32)
+        return obs, state
+
+    def _reset(self, seed: int) -> tuple[np.ndarray, np.ndarray]:
+        """(first observations, state: the per-env episode counts, zeros)."""
+        return self._obs(self.batch.reset(seed=seed)[0]), np.zeros(self.num_envs, np.int32)
 
     def _host_step(self, state: np.ndarray, actions: np.ndarray) -> VecStep:
         n = self.num_envs
@@ -147,6 +151,13 @@ class HostVecEnv:
 
     def _step(self, episodes: np.ndarray, actions: np.ndarray) -> VecStep:
         obs, reward, terminated, truncated, infos = self.batch.step(actions)
+        step, ended = self._results(np.arange(self.num_envs), obs, reward, terminated, truncated, infos)
+        return step._replace(state=(episodes + ended).astype(np.int32))
+
+    def _results(self, env_ids: np.ndarray, obs: Any, reward: Any, terminated: Any, truncated: Any,
+                 infos: dict[str, Any]) -> tuple[VecStep, np.ndarray]:
+        """A batch's step results as a VecStep (state None) and the rows that ended an episode; row ``r``
+        is env ``env_ids[r]``, whose ended episode is kept (and told to ``on_episode``)."""
         obs = self._obs(obs)
         done = np.asarray(terminated, bool) | np.asarray(truncated, bool)
         ended = _ended_episodes(infos, done)
@@ -154,11 +165,11 @@ class HostVecEnv:
         for i in np.flatnonzero(done):
             final_obs[i] = np.asarray(infos["final_obs"][i], np.float32)
         for i in np.flatnonzero(ended):
-            self._ended.append((int(i), env_info(infos["final_info"], int(i))))
+            self._ended.append((int(env_ids[i]), env_info(infos["final_info"], int(i))))
             if self.on_episode is not None:
                 self.on_episode(*self._ended[-1])
         return VecStep(obs, final_obs, np.asarray(reward, np.float32), np.asarray(terminated, bool),
-                       np.asarray(truncated, bool), (episodes + ended).astype(np.int32))
+                       np.asarray(truncated, bool), None), ended
 
     def _obs(self, obs: Any) -> np.ndarray:
         obs = np.asarray(obs, np.float32)

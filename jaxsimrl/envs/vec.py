@@ -19,6 +19,8 @@ Two kinds implement it:
 - ``jaxsimrl.envs.host.HostVecEnv``: a batch of host envs (OpenFOAM cases on a process pool) behind one
   ``io_callback`` per step that carries the whole action batch; the host batch auto-resets itself.
   It has no cheap samples (``sample_observations`` returns None): each would be a case build.
+  ``jaxsimrl.envs.host_async.AsyncHostVecEnv`` is its asynchronous variant: ``num_envs`` rows per call
+  out of ``async_envs`` envs, the state the env id of each row (the rollout: agents/ppo/rollout_async.py).
 
 The keys a VecEnv receives are this device's rows of per-global-env keys, so sharding envs over devices
 does not change any sample.

@@ -83,10 +83,15 @@ class FoamProgress:
     cuts the statistics, never the count."""
 
     def __init__(self, target: int, episodes: Any, pool: int, metrics: Any, stream: TextIO | None = None,
-                 live: bool | None = None, workers: Callable[[], int] | None = None) -> None:
+                 live: bool | None = None, workers: Callable[[], int] | None = None,
+                 utilisation: Callable[[], float] | None = None) -> None:
         self.target, self.episodes, self.pool, self.metrics = target, episodes, pool, metrics
         # the pool's live worker count (fewer than ``pool`` once a Ray node is lost for good)
         self.workers = workers or (lambda: pool)
+        # the pool's busy share; default: the finished episodes' solver seconds over the run's pool time
+        # (an asynchronous batch gives its workers' step seconds: queued steps would count twice here)
+        self.utilisation = utilisation or (
+            lambda: self.episodes.busy_s() / (self.pool * self.metrics.wall_time_s))
         self.stream = stream if stream is not None else sys.stdout
         self.console = Console(file=self.stream, highlight=False)
         self.live = self.console.is_terminal if live is None else live
@@ -137,7 +142,7 @@ class FoamProgress:
             parts.insert(0, f"workers {workers}/{self.pool}")
         if wall > 0:
             parts += [f"{count / wall * 3600:.0f} episodes/h",
-                      f"pool {self.episodes.busy_s() / (self.pool * wall):.0%} busy"]
+                      f"pool {self.utilisation():.0%} busy"]
         return "  ".join(parts)
 
     def update(self, env_steps: int, steps_per_s: float, mean_return: float, update: int,

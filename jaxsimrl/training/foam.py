@@ -4,13 +4,18 @@ The same PPO as train-lorenz (jaxsimrl.agents.ppo) on a :class:`jaxsimrl.envs.ho
 ``foam_bridge.batched.BatchedFoamEnv`` of ``num_envs`` cases on ``pool`` workers. One update = one
 jitted chunk; after it the episodes that ended in it come back from the host env as data
 (``HostVecEnv.take_episodes``) and join episodes.csv with that update's number; then the metrics rows,
-episodes.csv, a checkpoint and summary.json are written (in that order, Ctrl-C held back).
+episodes.csv, a checkpoint and summary.json are written (in that order, Ctrl-C held back). With
+PPOConfig.async_envs the batch is asynchronous instead (``foam_bridge.async_batch.AsyncFoamEnv`` behind
+:class:`jaxsimrl.envs.host_async.AsyncHostVecEnv`): num_envs of its async_envs cases per learner step,
+whichever are ready first.
 
 Resuming: every checkpoint also records the episodes in flight (each env's episode seed, actions so far,
 K, observation and seed stream): the solvers did not survive the process, so a resume replays them (the
 solver is deterministic), checks K, return and observation against the record, and carries on
 mid-episode exactly as the run would have; where that fails (an older checkpoint, a changed machine)
-every env starts a new episode instead, and says so. A run killed before its first checkpoint starts
+every env starts a new episode instead, and says so (an asynchronous batch always does: its envs stand
+mid-step, with results queued for the learner, so nothing is replayed; the episodes in flight were never
+logged, so none is doubled). A run killed before its first checkpoint starts
 over from its config.json. The run stops after the update in which the episode target is reached
 (PPOConfig.total_steps is only a safety bound), or, with a one-line HostEnvError, when every episode so
 far has failed the same way.
@@ -21,6 +26,7 @@ from __future__ import annotations
 import math
 import shutil
 import sys
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -49,6 +55,8 @@ class FoamPlan:
     resume: bool
     record: dict[str, Any] = field(default_factory=dict)
     init_from: Any = None  # jaxsimrl.introspect.LoadedPolicy whose network the run starts from
+    #: What each worker of an asynchronous batch builds instead of a FoamCaseEnv (tests: foam_bridge.standin).
+    make_env: Any = None
 
 
 def _say(text: str) -> None:
@@ -69,7 +77,6 @@ def train_foam(plan: FoamPlan, run: Any, *, tensorboard: bool = False,
     import jax
 
     from jaxsimrl.agents.ppo import make_train
-    from jaxsimrl.envs.foam import foam_vec_env
     from jaxsimrl.envs.foam_episodes import EPISODES_FILE, EpisodeLog
     from jaxsimrl.runs.checkpoint import Checkpoints
     from jaxsimrl.runs.progress import FoamProgress
@@ -86,9 +93,7 @@ def train_foam(plan: FoamPlan, run: Any, *, tensorboard: bool = False,
     episodes = EpisodeLog.load(run.path / EPISODES_FILE, done)  # rows past the checkpoint are dropped
     if plan.resume and not done:
         _start_over(run, episodes)
-    # the batch is re-seeded from the trainer's key at every reset; this seed only names its streams
-    vec = foam_vec_env(plan.foam, plan.ppo.num_envs, plan.pool, seed=plan.seed,
-                       backend=plan.backend, ray_address=plan.ray_address)
+    vec = _host_env(plan)
     try:
         trainer = make_train(plan.ppo, vec=vec, devices=jax.devices()[:1])
         with Checkpoints(run.checkpoints) as checkpoints, tensorboard_log(run.path, tensorboard) as tb:
@@ -100,16 +105,18 @@ def train_foam(plan: FoamPlan, run: Any, *, tensorboard: bool = False,
             else:
                 state, log = _initial_state(trainer, key, plan.init_from), MetricsLog(run)
             vec.raise_if_failed()
+            wall_before = log.wall_time_s
             session = Session(run, _HostTrainer(trainer, vec, episodes, done + 1), log, checkpoints,
                               meta={"config": record}, summary_extra={"run_dir": str(run.path)},
                               before_checkpoint=lambda _: episodes.flush(),
                               # workers_lost: workers lost for good (a Ray node died), one line each
                               summary_hook=lambda s: {**foam_summary(s, episodes, plan),
+                                                      **_async_utilisation(vec, s, wall_before, plan),
                                                       "workers_lost": list(vec.batch.backend.lost)},
                               tensorboard=tb,
-                              checkpoint_meta=lambda: {IN_FLIGHT: vec.batch.snapshot()})
-            with FoamProgress(plan.episodes, episodes, plan.pool, log,
-                              workers=vec.batch.backend.workers) as progress:
+                              checkpoint_meta=lambda: _in_flight(vec))
+            with FoamProgress(plan.episodes, episodes, plan.pool, log, workers=vec.batch.backend.workers,
+                              utilisation=_async_busy_share(vec, plan)) as progress:
                 vec.on_episode = lambda env_id, info: progress.episode_ended()  # the bar counts them live
                 resumed_with = len(episodes.rows)
                 train(session, state, done, progress, on_chunk,
@@ -118,6 +125,53 @@ def train_foam(plan: FoamPlan, run: Any, *, tensorboard: bool = False,
             return session.write_summary()
     finally:
         vec.batch.close()
+
+
+def _host_env(plan: FoamPlan) -> Any:
+    """The plan's env batch as a VecEnv: lock-step (BatchedFoamEnv), or asynchronous (AsyncFoamEnv of
+    async_envs cases, num_envs per learner step) with each worker step timed (foam_bridge.standin.TimedSteps)
+    for its pool utilisation. The batch is re-seeded from the trainer's key at every reset; this seed only
+    names its streams."""
+    if plan.ppo.async_envs is None:
+        from jaxsimrl.envs.foam import foam_vec_env
+
+        return foam_vec_env(plan.foam, plan.ppo.num_envs, plan.pool, seed=plan.seed, backend=plan.backend,
+                            ray_address=plan.ray_address)
+    from foam_bridge.async_batch import AsyncFoamEnv
+    from foam_bridge.standin import TimedSteps
+    from jaxsimrl.envs.host_async import AsyncHostVecEnv
+
+    batch = AsyncFoamEnv(plan.foam, plan.ppo.async_envs, plan.ppo.num_envs, backend=plan.backend,
+                         pool=plan.pool, ray_address=plan.ray_address, seed=plan.seed,
+                         make_env=TimedSteps(plan.make_env))
+    return AsyncHostVecEnv(batch)
+
+
+def _in_flight(vec: Any) -> dict[str, Any]:
+    """A checkpoint's record of the episodes in flight (BatchedFoamEnv.snapshot), for their replay on
+    resume. An asynchronous batch keeps none: its envs stand mid-step, with results queued for the
+    learner, and a resume starts new episodes (the ones in flight were never logged: none is doubled)."""
+    return {} if getattr(vec, "async_envs", None) else {IN_FLIGHT: vec.batch.snapshot()}
+
+
+def _async_utilisation(vec: Any, summary: dict[str, Any], wall_before: float, plan: FoamPlan
+                       ) -> dict[str, float]:
+    """An asynchronous batch's pool_utilisation: the workers' step seconds over this session's pool time.
+    (Episodes' ``wall_time_s - solver_idle_s``, lock-step's measure, would also count the time a step
+    waits in a worker's queue behind another env's: at 2 workers x 2 envs it read 120 %.)"""
+    if not getattr(vec, "async_envs", None):
+        return {}
+    wall = float(summary.get("wall_time_s", 0.0)) - wall_before
+    return {"pool_utilisation": vec.busy_s / (plan.pool * wall) if wall > 0 else math.nan}
+
+
+def _async_busy_share(vec: Any, plan: FoamPlan) -> Callable[[], float] | None:
+    """The progress line's pool busy share of an asynchronous batch (None: lock-step's default), as
+    _async_utilisation measures it, over this session."""
+    if not getattr(vec, "async_envs", None):
+        return None
+    started = time.monotonic()
+    return lambda: vec.busy_s / (plan.pool * max(time.monotonic() - started, 1e-9))
 
 
 def _stopping_progress(progress: Any, on_interrupt: Callable[[int], None] | None
@@ -155,7 +209,8 @@ def _target_reached(episodes: Any, plan: FoamPlan, resumed_with: int) -> bool:
     (the rule waits for an update of this session: ``resumed_with`` rows were there at its start)."""
     from jaxsimrl.envs.host import HostEnvError
 
-    cause = episodes.systematic_failure(plan.ppo.num_envs) if len(episodes.rows) > resumed_with else None
+    envs = plan.ppo.async_envs or plan.ppo.num_envs
+    cause = episodes.systematic_failure(envs) if len(episodes.rows) > resumed_with else None
     if cause is not None:
         raise HostEnvError(f"all {len(episodes.rows)} episodes so far failed the same way, {cause}; fix the "
                            f"case or settings, then resume")
@@ -193,6 +248,8 @@ def _replay_in_flight(vec: Any, snapshot: Any, state: Any) -> str:
     """Replay a checkpoint's episodes in flight into the new batch; "" if it matches, else why not."""
     import numpy as np
 
+    if getattr(vec, "async_envs", None):
+        return "an asynchronous batch (--async-envs) does not replay them"
     if not snapshot:
         return "the checkpoint has no record of them"
     saved = np.asarray(state.obs, np.float32).tolist()

@@ -65,6 +65,10 @@ class PPOConfig:
     # solver controller can start from a known good constant and learn where to leave it.
     init_action: tuple[float, ...] | None = None
     updates_per_chunk: int = 5  # updates per jitted run_chunk call (progress / checkpoint granularity)
+    # Envs behind an asynchronous host batch (EnvPool-style: each learner step takes the num_envs envs
+    # that are ready first, out of async_envs > num_envs); None = lock-step, every env every step.
+    # MLP network only: a recurrent carry would need each env's steps as one sequence.
+    async_envs: int | None = None
 
     # ---- derived sizes -------------------------------------------------------------------------
     @property
@@ -105,6 +109,7 @@ class PPOConfig:
                 if not ok(value):
                     raise ValueError(f"{name} must be {what}, got {value!r}")
         self._validate_divisibility()
+        self._validate_async()
         if self.anneal_start_lr is not None and not (_is_number(self.anneal_start_lr)
                                                      and 0 <= self.anneal_start_lr < _INF):
             raise ValueError(f"anneal_start_lr must be null or a non-negative number, got "
@@ -124,6 +129,16 @@ class PPOConfig:
         if self.chunks_per_env % self.num_minibatches:
             raise ValueError(f"num_minibatches ({self.num_minibatches}) must divide the chunks per env "
                              f"({self.chunks_per_env} = {self.steps_per_env} steps / seq_len {self.seq_len})")
+
+    def _validate_async(self) -> None:
+        if self.async_envs is None:
+            return
+        if not _is_int(self.async_envs) or self.async_envs <= self.num_envs:
+            raise ValueError(f"async_envs must be null or an integer > num_envs ({self.num_envs}), got "
+                             f"{self.async_envs!r}")
+        if self.network != "mlp":
+            raise ValueError(f"async_envs needs network \"mlp\" (a recurrent network's carry follows one "
+                             f"env's steps), got {self.network!r}")
 
     def to_dict(self) -> dict[str, Any]:
         """A JSON-ready dict (tuples become lists)."""

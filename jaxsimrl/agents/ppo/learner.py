@@ -1,4 +1,5 @@
-"""One PPO update on a collected rollout: GAE, then epochs x minibatches of Adam steps.
+"""One PPO update on a collected rollout: GAE (lock-step: :func:`gae`; an asynchronous batch's per
+env: rollout_async.py), then epochs x minibatches of Adam steps.
 
 Minibatches are "all local envs x a subset of the training sequences (chunks)": the chunk order is
 shuffled with a key every device shares, so the global minibatch is the union of the devices' local
@@ -46,26 +47,38 @@ def _minibatch(data: Batch, chunk_ids: jax.Array) -> Batch:
     return seqs._replace(carry=carry)
 
 
-def learn(ctx: RolloutContext, tx: optax.GradientTransformation, params: Any, opt_state: Any,
-          transitions: Transition, carries: Any, last_value: jax.Array, key: jax.Array
-          ) -> tuple[Any, Any, dict[str, jax.Array]]:
-    """GAE + update_epochs x num_minibatches gradient steps; returns params, opt_state, mean metrics."""
-    cfg = ctx.config
-    chunks, seq_len = transitions.reward.shape[:2]
-    flat = lambda x: x.reshape((chunks * seq_len,) + x.shape[2:])  # noqa: E731
-    advantages, targets = compute_gae(
+def time_flat(x: jax.Array) -> jax.Array:
+    """(chunks, seq_len, ...) -> (chunks * seq_len, ...): the rollout's steps in order."""
+    return x.reshape((x.shape[0] * x.shape[1],) + x.shape[2:])
+
+
+def gae(ctx: RolloutContext, transitions: Transition, last_value: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """Advantages and value targets of a lock-step rollout, shaped (T, local envs) (T = chunks x seq_len)."""
+    cfg, flat = ctx.config, time_flat
+    return compute_gae(
         flat(transitions.reward), flat(transitions.value), flat(transitions.terminated),
         flat(transitions.truncated), flat(transitions.final_value), last_value, cfg.gamma, cfg.gae_lambda)
+
+
+def learn(ctx: RolloutContext, tx: optax.GradientTransformation, params: Any, opt_state: Any,
+          transitions: Transition, carries: Any, advantages: jax.Array, targets: jax.Array, key: jax.Array
+          ) -> tuple[Any, Any, dict[str, jax.Array]]:
+    """update_epochs x num_minibatches gradient steps on the rollout and its advantages and targets
+    (T, local envs); returns params, opt_state, mean metrics. Rows of ``transitions.weight`` 0 (an
+    asynchronous batch's) count in no loss."""
+    cfg = ctx.config
+    chunks, seq_len = transitions.reward.shape[:2]
     unflat = lambda x: x.reshape((chunks, seq_len) + x.shape[1:])  # noqa: E731
     data = Batch(transitions.obs, transitions.starts, transitions.u, transitions.log_prob, transitions.value,
-                 unflat(advantages), unflat(targets), carries)
+                 unflat(advantages), unflat(targets), carries, transitions.weight)
     grad_fn = jax.grad(ppo_loss, has_aux=True)
 
     def sgd_step(train: tuple[Any, Any], chunk_ids: jax.Array) -> tuple[tuple[Any, Any], dict]:
         params, opt_state = train
         batch = _minibatch(data, chunk_ids)
         if cfg.normalize_advantages:
-            batch = batch._replace(advantage=normalize_advantages(batch.advantage, ctx.axis_name))
+            batch = batch._replace(advantage=normalize_advantages(batch.advantage, ctx.axis_name,
+                                                                  batch.weight))
         grads, metrics = grad_fn(params, ctx.apply_fn, batch, cfg, ctx.low, ctx.high)
         if ctx.axis_name is not None:
             grads, metrics = jax.lax.pmean((grads, metrics), ctx.axis_name)

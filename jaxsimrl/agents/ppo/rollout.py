@@ -8,12 +8,16 @@ the first of a new episode and is flagged as an episode start (the network zeroe
 For a step that was truncated (and not terminated) the critic is evaluated on the step's final
 (pre-reset) observation, ``final_obs``, and stored for the GAE bootstrap (see losses.py).
 
+An asynchronous host batch (PPOConfig.async_envs) runs the same scans with another step function
+(rollout_async.py), whose rows belong to a different env from step to step.
+
 Random numbers are drawn per *global* env index and sliced to this device's envs, so sharding the envs
 over devices does not change any sample.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any, NamedTuple
 
 import jax
@@ -59,6 +63,10 @@ class Transition(NamedTuple):
     terminated: jax.Array
     truncated: jax.Array
     final_value: jax.Array  # V(pre-reset final obs) where truncated, else 0
+    # Asynchronous batch only (rollout_async.py; None in lock-step): 0 for a row that completes no
+    # transition, else 1, and the env each row belongs to.
+    weight: jax.Array | None = None
+    env_id: jax.Array | None = None
 
 
 class EpisodeStats(NamedTuple):
@@ -76,6 +84,10 @@ class RolloutContext(NamedTuple):
     high: jax.Array
     num_local_envs: int
     axis_name: str | None
+
+
+#: One step of every local env: (ctx, runner, key) -> (runner, transition, episode stats).
+EnvStep = Callable[[RolloutContext, RunnerState, jax.Array], tuple[RunnerState, Transition, EpisodeStats]]
 
 
 def local_slice(ctx: RolloutContext, global_array: jax.Array) -> jax.Array:
@@ -104,7 +116,7 @@ def _env_step(ctx: RolloutContext, runner: RunnerState, key: jax.Array
     done = step.terminated | step.truncated
     transition = Transition(obs, runner.obs, runner.starts, u, log_prob, value,
                             step.reward * ctx.config.reward_scale, step.terminated, step.truncated,
-                            _bootstrap_value(ctx, runner, carry, step))
+                            bootstrap_value(ctx, runner, carry, step))
 
     episode_return = runner.episode_return + step.reward
     stats = EpisodeStats(jnp.sum(jnp.where(done, episode_return, 0.0)), jnp.sum(done.astype(jnp.float32)))
@@ -113,19 +125,21 @@ def _env_step(ctx: RolloutContext, runner: RunnerState, key: jax.Array
     return runner, transition, stats
 
 
-def collect(ctx: RolloutContext, runner: RunnerState, key: jax.Array
+def collect(ctx: RolloutContext, runner: RunnerState, key: jax.Array, env_step: EnvStep | None = None
             ) -> tuple[RunnerState, Transition, Any, EpisodeStats]:
-    """Run ``steps_per_env`` steps in every local env.
+    """Run ``steps_per_env`` steps in every local env (``env_step``: one step of the batch; default
+    the lock-step one, an asynchronous batch passes rollout_async.async_env_step).
 
     Returns the advanced state, the transitions shaped (chunks, seq_len, local envs, ...), the carry at
     the start of each chunk (chunks, local envs, ...) and the completed-episode statistics.
     """
     cfg = ctx.config
+    env_step = _env_step if env_step is None else env_step
 
     def chunk(runner: RunnerState, chunk_index: jax.Array) -> tuple[RunnerState, tuple]:
         def step(inner: tuple[RunnerState, EpisodeStats], t: jax.Array) -> tuple[tuple, Transition]:
             runner, stats = inner
-            runner, transition, new = _env_step(ctx, runner, jax.random.fold_in(key, t))
+            runner, transition, new = env_step(ctx, runner, jax.random.fold_in(key, t))
             stats = EpisodeStats(stats.return_sum + new.return_sum, stats.count + new.count)
             return (runner, stats), transition
 
@@ -145,7 +159,7 @@ def critic_value(ctx: RolloutContext, params: Any, normalizer: NormalizerState, 
     return forward(ctx.apply_fn, ctx.config, params, normalizer, carry, raw_obs, starts)[3]
 
 
-def _bootstrap_value(ctx: RolloutContext, runner: RunnerState, carry: Any, step: Any) -> jax.Array:
+def bootstrap_value(ctx: RolloutContext, runner: RunnerState, carry: Any, step: Any) -> jax.Array:
     """V(final obs) of the steps that were truncated and not terminated; zeros when there is none."""
     bootstrap = step.truncated & ~step.terminated
 

@@ -28,10 +28,11 @@ from jax.sharding import PartitionSpec as P
 
 from jaxsimrl.agents.ppo import normalizer as norm
 from jaxsimrl.agents.ppo.config import PPOConfig
-from jaxsimrl.agents.ppo.learner import learn, make_optimizer
+from jaxsimrl.agents.ppo.learner import gae, learn, make_optimizer
 from jaxsimrl.agents.ppo.networks import initial_carry
 from jaxsimrl.agents.ppo.policy import Policy
 from jaxsimrl.agents.ppo.rollout import RolloutContext, RunnerState, collect, critic_value
+from jaxsimrl.agents.ppo.rollout_async import async_advantages, async_env_step, initial_env_state
 from jaxsimrl.envs.vec import JaxVecEnv
 
 AXIS = "envs"
@@ -54,6 +55,9 @@ class PPOTrainer:
         self.vec = vec
         if vec.num_envs != config.num_envs:
             raise ValueError(f"the env batch has {vec.num_envs} envs but num_envs is {config.num_envs}")
+        vec_async = getattr(vec, "async_envs", None)
+        if vec_async != config.async_envs:
+            raise ValueError(f"the env batch has async_envs {vec_async} but the config {config.async_envs}")
         self.devices = list(jax.devices() if devices is None else devices)
         if getattr(vec, "single_device", False) and len(self.devices) > 1:
             raise ValueError(f"a host env batch is stepped whole, from one device; got {len(self.devices)} "
@@ -111,7 +115,7 @@ class PPOTrainer:
         if jnp.issubdtype(key.dtype, jax.dtypes.prng_key):
             key = jax.random.key_data(key)  # keep RunnerState plain uint32 arrays (orbax-saveable)
         net_key, env_key, norm_key, rng = jax.random.split(key, 4)
-        obs, env_state = self.vec.reset(jax.random.split(env_key, cfg.num_envs))
+        obs, env_state = self._reset_envs(env_key)
         carry = initial_carry(cfg, cfg.num_envs)
         starts = jnp.ones(cfg.num_envs, bool)
         params = self.network.init(net_key, initial_carry(cfg, 1), obs[:1][None], starts[:1][None])
@@ -124,9 +128,18 @@ class PPOTrainer:
         if jnp.issubdtype(key.dtype, jax.dtypes.prng_key):
             key = jax.random.key_data(key)
         n = self.config.num_envs
-        obs, env_state = self.vec.reset(jax.random.split(key, n))
+        obs, env_state = self._reset_envs(key)
         return state.replace(env_state=env_state, obs=obs, starts=jnp.ones(n, bool),
                              carry=initial_carry(self.config, n), episode_return=jnp.zeros(n, jnp.float32))
+
+    def _reset_envs(self, key: jax.Array) -> tuple[jax.Array, Any]:
+        """A new episode in every env: (first observations, env_state); an asynchronous batch's state
+        also holds a pending transition per env (none yet)."""
+        cfg = self.config
+        obs, env_state = self.vec.reset(jax.random.split(key, cfg.num_envs))
+        if cfg.async_envs is None:
+            return obs, env_state
+        return obs, initial_env_state(env_state, cfg.async_envs, obs.shape[-1], self.policy.low.shape[-1])
 
     def _seed_normalizer(self, key: jax.Array) -> norm.NormalizerState:
         """Statistics of many reset observations, so the first rollout already sees O(1) inputs; envs
@@ -143,10 +156,14 @@ class PPOTrainer:
         ctx, cfg, tx, schedule = self._setup(hparams)
         rng, rollout_key, learn_key = jax.random.split(state.rng, 3)
         lr = schedule(state.update_step * cfg.update_epochs * cfg.num_minibatches)
-        state, transitions, carries, episodes = collect(ctx, state, rollout_key)
+        asynchronous = cfg.async_envs is not None
+        state, transitions, carries, episodes = collect(ctx, state, rollout_key,
+                                                        async_env_step if asynchronous else None)
         last_value = critic_value(ctx, state.params, state.normalizer, state.carry, state.obs, state.starts)
+        advantages, targets = (async_advantages(cfg, transitions, state.env_state, last_value) if asynchronous
+                               else gae(ctx, transitions, last_value))
         params, opt_state, metrics = learn(ctx, tx, state.params, state.opt_state, transitions, carries,
-                                           last_value, learn_key)
+                                           advantages, targets, learn_key)
         normalizer = state.normalizer
         if cfg.normalize_obs:
             normalizer = norm.update(normalizer, transitions.raw_obs, AXIS)
