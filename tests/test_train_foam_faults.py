@@ -332,6 +332,7 @@ def test_ctrl_c_is_acknowledged_at_once_and_a_second_stops_now_resumable(tmp_pat
     while processes_under(tmp):  # the solvers died with their workers
         assert time.monotonic() < deadline, processes_under(tmp)
         time.sleep(0.2)
+    assert not any("Traceback" in line for line in lines), lines  # no worker's BrokenPipeError either
     steps = sorted(int(p.name) for p in (run / "checkpoints").iterdir() if p.name.isdigit())
     assert steps and steps[-1] >= 1
     assert main(["train-foam", "--resume", str(run), "--print-config"]) == 0  # resumable

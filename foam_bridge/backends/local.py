@@ -61,7 +61,11 @@ def _serve(conn: Connection, cfg: Any, work_dir: Path, make_env: EnvFactory | No
                 break
             if batch is None:
                 break
-            conn.send(host.handle_batch(batch))
+            result = host.handle_batch(batch)
+            try:
+                conn.send(result)
+            except OSError:  # the driver has gone (a second Ctrl-C): nobody is left to read the result
+                break
     finally:
         host.close()
 
