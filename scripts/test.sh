@@ -1,7 +1,10 @@
 #!/usr/bin/env bash
 # The README's test command: set up (scripts/setup.sh), lint, then the whole test suite.
+# The suite runs on 2 pytest-xdist workers, a test file per worker at a time (--dist loadfile): a file's
+# module-scoped fixtures (real training runs) are built once, and the Ray cluster tests (one file) never
+# run beside each other. `pytest tests/x.py` alone still runs in one process.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 .venv/bin/ruff check jaxsimrl foam_bridge tests benchmarks experiments docs
-.venv/bin/python -m pytest -q "$@"
+.venv/bin/python -m pytest -q -n 2 --dist loadfile "$@"

@@ -1,9 +1,34 @@
 """Suite-wide settings that must be in place before any test module imports its libraries."""
 
+import atexit
 import os
+import shutil
+import tempfile
 
 # Every Ray process the suite starts (a local instance, ray.cluster_utils' multi-node clusters, and the
 # train-foam subprocesses that join them) binds and connects on the loopback interface only. On Linux,
 # Ray picks the host's outward-facing address unless this flag, read once when Ray is imported, says
 # "no multi-node `ray start`" (the suite's clusters are built by cluster_utils, which it does not affect).
 os.environ.setdefault("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", "0")
+
+
+def _session_compilation_cache() -> None:
+    """Point JAX's persistent compilation cache at a fresh directory for this test session.
+
+    Many tests, and the CLI subprocesses that the README/docs examples and CLI tests start, compile the
+    same PPO programs again; with the cache each is compiled once per session and read back afterwards.
+    JAX reads these variables when it is imported, and subprocesses (and pytest-xdist's workers) inherit
+    them, so they all share one directory. It starts empty (a clean clone measures the same) and is
+    removed at exit: nothing leaks to ~/.cache, and `jaxsimrl solve`'s own cache there
+    (jaxsimrl/cli/solve.py) is neither read nor written. A cached program is the one compiled, so
+    results do not change (tests/test_ppo_training.py compares metrics exactly).
+    """
+    if os.environ.get("PYTEST_XDIST_WORKER"):  # the controller has set it up; share its directory
+        return
+    cache = tempfile.mkdtemp(prefix="jaxsimrl-tests-xla-")
+    atexit.register(shutil.rmtree, cache, ignore_errors=True)
+    os.environ["JAX_COMPILATION_CACHE_DIR"] = cache
+    os.environ["JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS"] = "0"  # default 1 s: most of ours are less
+
+
+_session_compilation_cache()
