@@ -105,18 +105,19 @@ def train_foam(plan: FoamPlan, run: Any, *, tensorboard: bool = False,
             else:
                 state, log = _initial_state(trainer, key, plan.init_from), MetricsLog(run)
             vec.raise_if_failed()
-            wall_before = log.wall_time_s
+            busy_share = _async_busy_share(vec, plan)
             session = Session(run, _HostTrainer(trainer, vec, episodes, done + 1), log, checkpoints,
                               meta={"config": record}, summary_extra={"run_dir": str(run.path)},
                               before_checkpoint=lambda _: episodes.flush(),
                               # workers_lost: workers lost for good (a Ray node died), one line each
                               summary_hook=lambda s: {**foam_summary(s, episodes, plan),
-                                                      **_async_utilisation(vec, s, wall_before, plan),
+                                                      **({} if busy_share is None
+                                                         else {"pool_utilisation": busy_share()}),
                                                       "workers_lost": list(vec.batch.backend.lost)},
                               tensorboard=tb,
                               checkpoint_meta=lambda: _in_flight(vec))
             with FoamProgress(plan.episodes, episodes, plan.pool, log, workers=vec.batch.backend.workers,
-                              utilisation=_async_busy_share(vec, plan)) as progress:
+                              utilisation=busy_share) as progress:
                 vec.on_episode = lambda env_id, info: progress.episode_ended()  # the bar counts them live
                 resumed_with = len(episodes.rows)
                 train(session, state, done, progress, on_chunk,
@@ -154,20 +155,11 @@ def _in_flight(vec: Any) -> dict[str, Any]:
     return {} if getattr(vec, "async_envs", None) else {IN_FLIGHT: vec.batch.snapshot()}
 
 
-def _async_utilisation(vec: Any, summary: dict[str, Any], wall_before: float, plan: FoamPlan
-                       ) -> dict[str, float]:
-    """An asynchronous batch's pool_utilisation: the workers' step seconds over this session's pool time.
-    (Episodes' ``wall_time_s - solver_idle_s``, lock-step's measure, would also count the time a step
-    waits in a worker's queue behind another env's: at 2 workers x 2 envs it read 120 %.)"""
-    if not getattr(vec, "async_envs", None):
-        return {}
-    wall = float(summary.get("wall_time_s", 0.0)) - wall_before
-    return {"pool_utilisation": vec.busy_s / (plan.pool * wall) if wall > 0 else math.nan}
-
-
 def _async_busy_share(vec: Any, plan: FoamPlan) -> Callable[[], float] | None:
-    """The progress line's pool busy share of an asynchronous batch (None: lock-step's default), as
-    _async_utilisation measures it, over this session."""
+    """An asynchronous batch's pool utilisation (summary.json and the progress line): the workers' step
+    seconds over this session's pool time; None for lock-step, whose episodes give it. (Episodes'
+    ``wall_time_s - solver_idle_s`` would also count the time a step waits in a worker's queue behind
+    another env's: at 2 workers x 2 envs it read 120 %.)"""
     if not getattr(vec, "async_envs", None):
         return None
     started = time.monotonic()
