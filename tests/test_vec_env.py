@@ -124,6 +124,34 @@ def test_host_vec_env_inside_the_jitted_rollout_one_call_per_step():
     assert state.obs.shape == (3, 1) and state.obs.dtype == jnp.float32
 
 
+class NonTransitionBatch(CountdownBatch):
+    """A CountdownBatch with gymnasium's masks whose env 0, at its first step, returns what
+    BatchedFoamEnv returns once a failed auto-reset's retry succeeds: a non-transition (reward 0,
+    truncated, a final observation but no final info) and a new episode."""
+
+    def step(self, actions):
+        obs, reward, terminated, truncated, infos = super().step(actions)
+        done = terminated | truncated
+        infos = {**infos, "_final_obs": done.copy(), "_final_info": done.copy()}
+        if self.steps == 1:
+            self.left[0] = self._length(0)
+            obs[0], reward[0], truncated[0], infos["_final_obs"][0] = self.left[0], 0.0, True, True
+        return obs, reward, terminated, truncated, infos
+
+
+def test_a_non_transition_is_no_episode_in_the_update_s_statistics():
+    ended: list[tuple[int, str]] = []
+    vec = HostVecEnv(NonTransitionBatch(3), on_episode=lambda i, info: ended.append((i, info["outcome"])))
+    trainer = make_train(HOST, vec=vec, devices=jax.devices()[:1])
+    _, metrics = trainer.run_chunk(trainer.init(jax.random.PRNGKey(0)))
+    vec.raise_if_failed()
+    # 4 steps: env 0 restarts at step 1 (no episode) and ends a 2-step one at step 3; env 1 (3 steps)
+    # and env 2 (4 steps) end one each: returns -2, -3, -4
+    assert sorted(ended) == [(0, "converged"), (1, "converged"), (2, "converged")]
+    assert int(metrics["episodes"][0]) == 3
+    assert float(metrics["mean_episode_return"][0]) == pytest.approx(-3.0)
+
+
 def test_a_host_failure_is_raised_after_the_call_not_inside_it():
     batch = CountdownBatch(3, explode_at=2)
     vec = HostVecEnv(batch)

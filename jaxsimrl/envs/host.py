@@ -106,7 +106,7 @@ class HostVecEnv:
         n = self.num_envs
         shapes = VecStep(self._obs_shape(), self._obs_shape(), jax.ShapeDtypeStruct((n,), jnp.float32),
                          jax.ShapeDtypeStruct((n,), jnp.bool_), jax.ShapeDtypeStruct((n,), jnp.bool_),
-                         jax.ShapeDtypeStruct((n,), jnp.int32))
+                         jax.ShapeDtypeStruct((n,), jnp.int32), jax.ShapeDtypeStruct((n,), jnp.bool_))
         return io_callback(self._host_step, shapes, state, actions, ordered=True)
 
     # ---- driver side -----------------------------------------------------------------------------
@@ -147,17 +147,17 @@ class HostVecEnv:
                 self._fail(err)
         zeros = np.zeros((n, self.obs_dim), np.float32)
         return VecStep(zeros, zeros, np.zeros(n, np.float32), np.zeros(n, bool), np.zeros(n, bool),
-                       np.asarray(state, np.int32))
+                       np.asarray(state, np.int32), np.zeros(n, bool))
 
     def _step(self, episodes: np.ndarray, actions: np.ndarray) -> VecStep:
         obs, reward, terminated, truncated, infos = self.batch.step(actions)
-        step, ended = self._results(np.arange(self.num_envs), obs, reward, terminated, truncated, infos)
-        return step._replace(state=(episodes + ended).astype(np.int32))
+        step = self._results(np.arange(self.num_envs), obs, reward, terminated, truncated, infos)
+        return step._replace(state=(episodes + step.ended).astype(np.int32))
 
     def _results(self, env_ids: np.ndarray, obs: Any, reward: Any, terminated: Any, truncated: Any,
-                 infos: dict[str, Any]) -> tuple[VecStep, np.ndarray]:
-        """A batch's step results as a VecStep (state None) and the rows that ended an episode; row ``r``
-        is env ``env_ids[r]``, whose ended episode is kept (and told to ``on_episode``)."""
+                 infos: dict[str, Any]) -> VecStep:
+        """A batch's step results as a VecStep (state None); row ``r`` is env ``env_ids[r]``, whose ended
+        episode (``ended[r]``) is kept (and told to ``on_episode``)."""
         obs = self._obs(obs)
         done = np.asarray(terminated, bool) | np.asarray(truncated, bool)
         ended = _ended_episodes(infos, done)
@@ -169,7 +169,7 @@ class HostVecEnv:
             if self.on_episode is not None:
                 self.on_episode(*self._ended[-1])
         return VecStep(obs, final_obs, np.asarray(reward, np.float32), np.asarray(terminated, bool),
-                       np.asarray(truncated, bool), None), ended
+                       np.asarray(truncated, bool), None, ended)
 
     def _obs(self, obs: Any) -> np.ndarray:
         obs = np.asarray(obs, np.float32)

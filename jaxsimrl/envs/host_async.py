@@ -53,7 +53,7 @@ class AsyncHostVecEnv(HostVecEnv):
         self.batch.send(actions, ids)
         ready, obs, reward, terminated, truncated, infos = self.batch.recv()
         self.busy_s += step_seconds(infos)
-        step, _ = self._results(np.asarray(ready), obs, reward, terminated, truncated, infos)
+        step = self._results(np.asarray(ready), obs, reward, terminated, truncated, infos)
         return step._replace(state=np.asarray(ready, np.int32))
 
 

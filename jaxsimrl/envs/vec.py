@@ -10,6 +10,10 @@ The trainer never calls an env's ``reset``/``step`` itself: it talks to a :class
     out.final_obs    # (N, obs_dim) the observation the step itself reached (pre-reset); the truncation
                      # bootstrap evaluates the critic on it
     out.reward, out.terminated, out.truncated, out.state
+    out.ended        # (N,) the envs whose step ended an episode: terminated | truncated, except a host
+                     # batch's non-transition (the step after a failed auto-reset, truncated to bootstrap
+                     # from the old episode's last observation), which ended none; episode statistics
+                     # count these
 
 Two kinds implement it:
 
@@ -43,6 +47,7 @@ class VecStep(NamedTuple):
     terminated: jax.Array
     truncated: jax.Array
     state: Any
+    ended: jax.Array
 
 
 class VecEnv(Protocol):
@@ -88,7 +93,7 @@ class JaxVecEnv:
 
         return VecStep(obs=pick(reset_obs, step.obs), final_obs=step.obs, reward=step.reward,
                        terminated=step.terminated, truncated=step.truncated,
-                       state=jax.tree.map(pick, reset_state, step.state))
+                       state=jax.tree.map(pick, reset_state, step.state), ended=done)
 
     def sample_observations(self, key: jax.Array, count: int) -> jax.Array:
         """``count`` reset observations (for the normaliser's initial statistics)."""

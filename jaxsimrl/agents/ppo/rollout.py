@@ -119,7 +119,8 @@ def _env_step(ctx: RolloutContext, runner: RunnerState, key: jax.Array
                             bootstrap_value(ctx, runner, carry, step))
 
     episode_return = runner.episode_return + step.reward
-    stats = EpisodeStats(jnp.sum(jnp.where(done, episode_return, 0.0)), jnp.sum(done.astype(jnp.float32)))
+    stats = EpisodeStats(jnp.sum(jnp.where(step.ended, episode_return, 0.0)),
+                         jnp.sum(step.ended.astype(jnp.float32)))
     runner = runner.replace(env_state=step.state, obs=step.obs, starts=done, carry=carry,
                             episode_return=jnp.where(done, 0.0, episode_return))
     return runner, transition, stats

@@ -97,7 +97,7 @@ def async_env_step(ctx: RolloutContext, runner: RunnerState, key: jax.Array
                             real.astype(jnp.float32), ids)
 
     returns = env.episode_return[ids] + jnp.where(real, step.reward, 0.0)
-    ended = done & real
+    ended = step.ended & real
     stats = EpisodeStats(jnp.sum(jnp.where(ended, returns, 0.0)), jnp.sum(ended.astype(jnp.float32)))
     pending = sent._replace(valid=sent.valid.at[ids].set(False))  # their results are with the learner
     env = AsyncEnvState(ids, pending, env.episode_return.at[ids].set(jnp.where(done, 0.0, returns)))
