@@ -9,7 +9,7 @@ RESULTS_train_foam.md) for ``--warmup-s`` and then a ``--window-s`` window. Util
 over ``pool x window``, three ways:
 
 - ``steps``: the worker seconds of every step whose result came back in the window (each env is wrapped
-  in standin.TimedSteps); the measure for both batches and both solvers.
+  in foam_bridge.timing.TimedSteps); the measure for both batches and both solvers.
 - ``records``: wall_time_s - solver_idle_s of the episodes that ended in the window (what train-foam's
   pool_utilisation counts; counting episodes by their end, in a steady state, neither loses nor
   double-counts the ones that straddle the window's edges). It also counts the time an episode's first
@@ -48,7 +48,8 @@ sys.path.insert(0, str(ROOT))
 
 from foam_bridge.atomic import atomic_write_text  # noqa: E402
 from foam_bridge.config import FoamEnvConfig  # noqa: E402
-from foam_bridge.standin import DETREND, Profile, StandIn, TimedSteps  # noqa: E402
+from foam_bridge.standin import DETREND, Profile, StandIn  # noqa: E402
+from foam_bridge.timing import TimedSteps  # noqa: E402
 
 PROFILES = {"mesh05": ("experiments/foam/train-mesh05/episodes.csv", 757),  # RESULTS_train_foam's 757
             "full": ("experiments/foam/finetune-full/episodes.csv", None)}

@@ -27,10 +27,7 @@ the time between a step's end and the next step's start (waiting on the bridge),
 the seconds it slept computing (the stand-in's exact busy time). The observation is the fraction of the
 episode left, the reward minus the iterations run (as the real env's); actions are ignored.
 
-``TimedSteps`` wraps either env (the real one too) and adds ``info["step_s"]``, the seconds the worker
-spent in that step: what a utilisation measurement sums, whatever order the batch steps its envs in
-(an episode's ``wall_time_s - solver_idle_s`` also counts the time its first step waits in a busy
-worker's queue, so it overstates the asynchronous batch's).
+A utilisation measurement wraps it (or the real env) in ``foam_bridge.timing.TimedSteps``.
 """
 
 from __future__ import annotations
@@ -46,7 +43,7 @@ import numpy as np
 
 from foam_bridge.records import EpisodeRecord
 
-__all__ = ["DETREND", "RESET_S", "Profile", "StandIn", "StandInEnv", "TimedSteps"]
+__all__ = ["DETREND", "RESET_S", "Profile", "StandIn", "StandInEnv"]
 
 #: Seconds a reset takes (case copy; foam_bridge.env's measurement at mesh 0.5-1.0).
 RESET_S = 0.09
@@ -114,31 +111,6 @@ class StandIn:
 
     def __call__(self, cfg: Any, work_dir: Path, env_id: int) -> StandInEnv:
         return StandInEnv(cfg, self.profile, env_id)
-
-
-class TimedSteps:
-    """An ``EnvFactory`` wrapping ``inner`` (None: FoamCaseEnv): each step's info gets "step_s"."""
-
-    def __init__(self, inner: Any = None) -> None:
-        self.inner = inner
-
-    def __call__(self, cfg: Any, work_dir: Path, env_id: int) -> Any:
-        if self.inner is None:
-            from foam_bridge.env import FoamCaseEnv
-
-            env = FoamCaseEnv(cfg, work_dir=work_dir, env_id=env_id)
-        else:
-            env = self.inner(cfg, work_dir, env_id)
-        step = env.step
-
-        def timed_step(action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
-            begun = time.monotonic()
-            *result, info = step(action)
-            info["step_s"] = time.monotonic() - begun
-            return (*result, info)
-
-        env.step = timed_step
-        return env
 
 
 class StandInEnv:

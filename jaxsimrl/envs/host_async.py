@@ -17,7 +17,7 @@ first appearance after the reset: it completes no step). Pairing each result wit
 caused it is the rollout's job (jaxsimrl.agents.ppo.rollout_async).
 
 ``busy_s`` sums the worker seconds of the steps returned so far, from each step's ``info["step_s"]``
-(foam_bridge.standin.TimedSteps): what a utilisation measurement divides by the pool's time. An
+(foam_bridge.timing.TimedSteps): what a utilisation measurement divides by the pool's time. An
 episode's ``wall_time_s - solver_idle_s`` would also count the time its step waits in a worker's queue
 behind another env's, which the asynchronous batch has by design.
 """

@@ -130,7 +130,7 @@ def train_foam(plan: FoamPlan, run: Any, *, tensorboard: bool = False,
 
 def _host_env(plan: FoamPlan) -> Any:
     """The plan's env batch as a VecEnv: lock-step (BatchedFoamEnv), or asynchronous (AsyncFoamEnv of
-    async_envs cases, num_envs per learner step) with each worker step timed (foam_bridge.standin.TimedSteps)
+    async_envs cases, num_envs per learner step) with each worker step timed (foam_bridge.timing.TimedSteps)
     for its pool utilisation. The batch is re-seeded from the trainer's key at every reset; this seed only
     names its streams."""
     if plan.ppo.async_envs is None:
@@ -139,7 +139,7 @@ def _host_env(plan: FoamPlan) -> Any:
         return foam_vec_env(plan.foam, plan.ppo.num_envs, plan.pool, seed=plan.seed, backend=plan.backend,
                             ray_address=plan.ray_address)
     from foam_bridge.async_batch import AsyncFoamEnv
-    from foam_bridge.standin import TimedSteps
+    from foam_bridge.timing import TimedSteps
     from jaxsimrl.envs.host_async import AsyncHostVecEnv
 
     batch = AsyncFoamEnv(plan.foam, plan.ppo.async_envs, plan.ppo.num_envs, backend=plan.backend,
