@@ -42,6 +42,9 @@ ACTION = (0.9, 0.5)  # episodes of 2-3 steps on this mesh, ending normally (conv
 #: The longest a step may take here: Ray's notice of a dead actor and the bounded start of a
 #: replacement (start_deadline_s: 30 s with this config) with room to spare on a loaded machine.
 STEP_BOUND_S = 120.0
+#: A train-foam driver's case: COARSE's mesh and cap (episodes of at most 3 steps), 4 steps per env per
+#: update. Its solvers stay alive between steps, so a kill still finds them mid-update.
+DRIVER = ["--mesh-scale", "0.4", "--max-iterations", "300", "--steps-per-update", "8"]
 
 
 def bounded(seconds: float, fn: Callable[..., Any], *args: Any) -> Any:
@@ -77,7 +80,9 @@ def ray_cluster(head_cpus: int, *node_cpus: int) -> Iterator[tuple[Any, list[Any
     processes the test adds are killed, if still running, before the cluster stops."""
     from ray.cluster_utils import Cluster
 
-    cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": head_cpus})
+    # no dashboard modules on the head (nothing here uses them; the drivers connect without one too)
+    head = {"num_cpus": head_cpus, "include_dashboard": False}
+    cluster = Cluster(initialize_head=True, head_node_args=head)
     processes: list[subprocess.Popen] = []
     try:
         nodes = [add_node(cluster, cpus) for cpus in node_cpus]
@@ -335,8 +340,8 @@ def test_train_foam_reaches_its_target_with_a_node_killed_and_resumes(tmp_path):
     tmp.mkdir()
     with ray_cluster(1, 1) as (cluster, (doomed,), processes):
         common = ["--backend", "ray", "--ray-address", cluster.address, "--pool", "2"]
-        process = _train_foam(processes, tmp, *common, "--mesh-scale", "0.5", "--max-iterations", "300",
-                              "--steps-per-update", "8", "--episodes", "6", "--seed", "3", "--out", str(run))
+        process = _train_foam(processes, tmp, *common, *DRIVER, "--episodes", "6", "--seed", "3",
+                              "--out", str(run))
         # both envs have a solver: kill a node mid-update
         wait_until(lambda: len(solver_pids(tmp)) >= 2, process, "two solvers running")
         time.sleep(1.0)
@@ -371,8 +376,7 @@ def test_train_foam_with_no_node_left_stops_in_one_line_saying_how_to_resume(tmp
     tmp.mkdir()
     with ray_cluster(0, 1) as (cluster, (only,), processes):  # the head runs no worker
         process = _train_foam(processes, tmp, "--backend", "ray", "--ray-address", cluster.address,
-                              "--pool", "1", "--mesh-scale", "0.5", "--max-iterations", "300",
-                              "--steps-per-update", "8", "--episodes", "1000", "--out", str(run))
+                              "--pool", "1", *DRIVER, "--episodes", "1000", "--out", str(run))
         wait_until(lambda: (run / "checkpoints" / "1").is_dir() and bool(solver_pids(tmp)), process,
                    "a first checkpoint and a solver running")
         kill_node(cluster, only)
@@ -409,8 +413,9 @@ def test_train_foam_killed_after_a_node_loss_resumes_losing_no_episode(tmp_path)
     tmp.mkdir()
     with ray_cluster(1, 1) as (cluster, (doomed,), processes):
         common = ["--backend", "ray", "--ray-address", cluster.address, "--pool", "2"]
-        process = _train_foam(processes, tmp, *common, "--mesh-scale", "0.5", "--max-iterations", "300",
-                              "--steps-per-update", "8", "--episodes", "20", "--seed", "3",
+        # a target the run cannot reach before the driver is killed below, in the update after the first
+        # checkpoint after the loss (update 2 or 3): episodes take 2-3 steps, about 3 end per update
+        process = _train_foam(processes, tmp, *common, *DRIVER, "--episodes", "12", "--seed", "3",
                               "--out", str(run))
         wait_until(lambda: len(solver_pids(tmp)) >= 2, process, "two solvers running")
         time.sleep(1.0)
@@ -435,7 +440,7 @@ def test_train_foam_killed_after_a_node_loss_resumes_losing_no_episode(tmp_path)
         assert any(row["cause"].startswith("node lost") for row in before), before  # the loss is kept
 
         add_node(cluster, 1)  # the head alone has 1 CPU: a pool of 2 needs a node back
-        target = 26  # raised from 20
+        target = 14  # raised from 12
         resumed = _train_foam(processes, tmp, "--resume", str(run), "--episodes", str(target), *common)
         out, err = resumed.communicate(timeout=600)
         assert resumed.returncode == 0, err

@@ -44,8 +44,15 @@ SCRIPT = textwrap.dedent("""
 """)
 
 
+def two_devices_env() -> dict[str, str]:
+    """The environment of a subprocess whose JAX sees 2 CPU devices, keeping the session's XLA flags
+    (tests/conftest.py)."""
+    flags = f"{os.environ.get('XLA_FLAGS', '')} --xla_force_host_platform_device_count=2".strip()
+    return {**os.environ, "XLA_FLAGS": flags, "JAX_PLATFORMS": "cpu"}
+
+
 def test_two_devices_learn_the_same_as_one():
-    env = {**os.environ, "XLA_FLAGS": "--xla_force_host_platform_device_count=2", "JAX_PLATFORMS": "cpu"}
+    env = two_devices_env()
     env["PYTHONPATH"] = os.pathsep.join([os.path.dirname(__file__), env.get("PYTHONPATH", "")])
     proc = subprocess.run([sys.executable, "-c", SCRIPT], env=env, capture_output=True, text=True,
                           timeout=600)

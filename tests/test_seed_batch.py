@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import subprocess
 import sys
 import textwrap
@@ -17,6 +16,7 @@ import jax
 import numpy as np
 import pytest
 from test_cli_lorenz import TINY_FLAGS, run_cli
+from test_ppo_devices import two_devices_env
 from test_resume import final_state, metrics, stop_after, train
 
 from jaxsimrl.agents.ppo import batch as batch_module
@@ -252,9 +252,8 @@ TWO_DEVICES = textwrap.dedent("""
 
 
 def test_a_batch_sharded_over_two_devices_matches_single_seed_runs_with_episodes():
-    env = {**os.environ, "XLA_FLAGS": "--xla_force_host_platform_device_count=2", "JAX_PLATFORMS": "cpu"}
-    proc = subprocess.run([sys.executable, "-c", TWO_DEVICES], env=env, capture_output=True, text=True,
-                          timeout=600)
+    proc = subprocess.run([sys.executable, "-c", TWO_DEVICES], env=two_devices_env(), capture_output=True,
+                          text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr[-3000:]
     out = json.loads(next(x for x in proc.stdout.splitlines() if x.startswith("RESULT"))[len("RESULT"):])
     assert "spec=P(None, 'envs')" in out["sharding"], out["sharding"]  # envs split, agents not

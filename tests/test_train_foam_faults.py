@@ -17,14 +17,12 @@ from pathlib import Path
 import pytest
 from foam_marks import needs_openfoam
 from rich.console import Console
+from test_train_foam import TINY  # the cheap real runs: smallest mesh, 4 steps per env per update
 
 from foam_bridge.config import FoamEnvConfig
 from jaxsimrl.cli.foam_plan import episode_steps_bound, total_steps_for
 from jaxsimrl.cli.main import main
 from jaxsimrl.envs.foam_episodes import EpisodeLog
-
-# The cheap real runs of test_train_foam.py: the smallest usable mesh, 4 steps per env per update.
-TINY = ["--mesh-scale", "0.4", "--pool", "2", "--steps-per-update", "8", "--max-iterations", "1500"]
 
 
 def run_cli(capsys, *argv: str) -> tuple[int, str, str]:
