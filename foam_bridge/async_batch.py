@@ -29,7 +29,16 @@ episode of 0 iterations with cause "reset failed: ...". ``recv`` and ``send`` ne
 or worker fault; they raise ValueError for a caller's error (bad actions or ids, recv before send).
 ``async_reset`` raises as ``BatchedFoamEnv.reset`` does when an env cannot start at all.
 
-Not here (yet): snapshot/replay (a resume would have to drain the envs in flight first).
+Resuming: :meth:`AsyncFoamEnv.snapshot` records, per env, its running episode (reset seed, the actions
+whose results were absorbed, K, return, observation; foam_bridge.replay), its seed stream and where it
+stands: with the learner, a step in flight (its action), a background reset in flight (its seed and the
+ended step's result, or the action of a retried reset), or a result waiting for ``recv`` (JSON-ready);
+an env whose reset failed keeps its cause and last observation. :meth:`AsyncFoamEnv.replay` rebuilds
+all of it in another batch: it replays the running episodes (reset, step, check: the solver is
+deterministic), puts the waiting results back in their order and the learner's envs back with the
+learner, and sends the steps and resets that were in flight again without waiting for them. So a
+learner restored from the same moment goes on as if never stopped, except for the order in which the
+re-sent envs become ready: that depends on the workers' timing, as it does in any asynchronous batch.
 """
 
 from __future__ import annotations
@@ -42,6 +51,7 @@ import numpy as np
 from foam_bridge.backends import Reply, Request
 from foam_bridge.batched import FoamBatchCore, _InfoBatcher, _reset_cause, _reset_error, _Tally
 from foam_bridge.config import ACTION_NAMES, FoamEnvConfig
+from foam_bridge.replay import from_json, json_ready
 
 __all__ = ["AsyncFoamEnv"]
 
@@ -56,6 +66,17 @@ class _Ready:
                  truncated: bool = False, infos: list[dict[str, Any]] | None = None) -> None:
         self.obs, self.reward, self.terminated, self.truncated = obs, reward, terminated, truncated
         self.infos = infos or []
+
+    def to_json(self) -> dict[str, Any]:
+        """JSON-ready (a snapshot's); :meth:`from_json` makes it a _Ready again."""
+        return {"obs": json_ready(self.obs), "reward": float(self.reward),
+                "terminated": bool(self.terminated), "truncated": bool(self.truncated),
+                "infos": json_ready(self.infos)}
+
+    @classmethod
+    def from_json(cls, data: dict[str, Any]) -> _Ready:
+        return cls(np.asarray(data["obs"], np.float32), data["reward"], data["terminated"], data["truncated"],
+                   [from_json(info) for info in data["infos"]])
 
 
 class AsyncFoamEnv(FoamBatchCore):
@@ -130,11 +151,14 @@ class AsyncFoamEnv(FoamBatchCore):
             if self._tallies[env_id].reset_failure:  # no episode to step: retry its reset
                 requests.append(self._reset_request(env_id, ("retry", action)))
             else:
-                self._in_flight[env_id] = ("step", action)
-                requests.append(Request(env_id, "step", {"action": action}))
+                requests.append(self._step_request(env_id, action))
         self.backend.submit(requests)
 
     # ----- the pool's side ---------------------------------------------------------------------
+    def _step_request(self, env_id: int, action: np.ndarray) -> Request:
+        self._in_flight[env_id] = ("step", action)
+        return Request(env_id, "step", {"action": action})
+
     def _reset_request(self, env_id: int, context: Any, seed: int | None = None) -> Request:
         """A background reset of ``env_id``; ``context`` says what to do with its reply."""
         seed = self._episode_seed(env_id) if seed is None else seed
@@ -200,3 +224,74 @@ class AsyncFoamEnv(FoamBatchCore):
                 self._in_flight.pop(reply.env_id, None)
         self._ready.clear()
         self._with_learner.clear()
+
+    # ----- resuming ----------------------------------------------------------------------------
+    def snapshot(self) -> dict[str, Any]:
+        """Every env's state as JSON-ready data, enough for :meth:`replay` in another batch (another
+        process; see the module docstring): ``envs`` (one entry per env), ``ready`` (the envs whose
+        results wait, in order) and ``with_learner`` (the envs the last recv returned)."""
+        envs = []
+        for env_id in range(self.num_envs):
+            entry = {**self._episode_entry(env_id), "reset_failure": self._tallies[env_id].reset_failure}
+            what, context = self._in_flight.get(env_id, (None, None))
+            if what == "step":
+                entry["step"] = json_ready(context)
+            elif what == "reset":
+                (kind, payload), seed = context
+                entry["running"] = False  # its tally is the ended episode's, or none: nothing to replay
+                entry["reset"] = {"kind": kind, "seed": seed, "retried": env_id in self._retried,
+                                  "payload": payload.to_json() if kind == "ended" else json_ready(payload)}
+            if not entry["running"]:  # what replay restores of it: its last observation
+                entry.update({"seed": None, "actions": [], "iterations": 0, "return": 0.0})
+            if env_id in self._ready:
+                entry["ready"] = self._ready[env_id].to_json()
+            envs.append(entry)
+        return {"envs": envs, "ready": list(self._ready), "with_learner": sorted(self._with_learner)}
+
+    def replay(self, snapshot: dict[str, Any]) -> str:
+        """Bring the batch to the state of ``snapshot``: replay the running episodes (as
+        BatchedFoamEnv.replay), restore the envs without one, the seed streams, the waiting results and
+        the learner's envs, and send the steps and resets that were in flight again. Returns "" when
+        every env matches; otherwise why not, and the batch must be ``async_reset`` before it is used."""
+        why = self._incomplete(snapshot)
+        if why:
+            return why
+        if self._in_flight or self._ready or self._with_learner:
+            self._drain()
+        envs = snapshot["envs"]
+        why = self._replay_episodes({i: entry for i, entry in enumerate(envs) if entry["running"]})
+        if why:
+            return why
+        for env_id, entry in enumerate(envs):
+            if not entry["running"]:  # an ended episode, or none since a reset failed
+                self._tallies[env_id] = _Tally(np.asarray(entry["obs"], np.float32),
+                                               reset_failure=entry["reset_failure"])
+        self._restore_streams(envs)
+        self._ready = OrderedDict((i, _Ready.from_json(envs[i]["ready"])) for i in snapshot["ready"])
+        self._with_learner = set(snapshot["with_learner"])
+        self._retried = {i for i, entry in enumerate(envs) if entry.get("reset", {}).get("retried")}
+        self.backend.submit([self._resend(i, entry) for i, entry in enumerate(envs)
+                             if "step" in entry or "reset" in entry])
+        return ""
+
+    def _incomplete(self, snapshot: Any) -> str:
+        """Why ``snapshot`` cannot be this batch's state ("" if it can): each env must stand in exactly
+        one place (with the learner, ready, or with a request in flight)."""
+        envs = snapshot.get("envs") if isinstance(snapshot, dict) else None
+        if not isinstance(envs, list) or len(envs) != self.num_envs:
+            return f"the snapshot does not hold the {self.num_envs} envs of an asynchronous batch"
+        places = [*snapshot.get("ready", []), *snapshot.get("with_learner", []),
+                  *(i for i, entry in enumerate(envs) if "step" in entry or "reset" in entry)]
+        if sorted(places) != list(range(self.num_envs)) \
+                or any("ready" not in envs[i] for i in snapshot.get("ready", [])):
+            return "the snapshot does not place each env once (with the learner, ready or in flight)"
+        return ""
+
+    def _resend(self, env_id: int, entry: dict[str, Any]) -> Request:
+        """The request env ``env_id`` had in flight at the snapshot, in flight again."""
+        if "step" in entry:
+            return self._step_request(env_id, np.asarray(entry["step"], np.float64))
+        reset = entry["reset"]
+        payload = (_Ready.from_json(reset["payload"]) if reset["kind"] == "ended"
+                   else np.asarray(reset["payload"], np.float64))
+        return self._reset_request(env_id, (reset["kind"], payload), int(reset["seed"]))

@@ -33,7 +33,6 @@ raises when an env cannot start at all: a broken case or setup is the caller's t
 
 from __future__ import annotations
 
-import json
 import os
 import shutil
 import time
@@ -61,6 +60,7 @@ from foam_bridge.config import (  # failure_reward: re-exported
 )
 from foam_bridge.env import action_spec, observation_spec
 from foam_bridge.records import EpisodeRecord
+from foam_bridge.replay import EpisodeReplay
 
 __all__ = ["SEED_BOUND", "BatchedFoamEnv", "FoamBatchCore"]
 
@@ -114,10 +114,11 @@ class _Tally:
     node: str = ""
 
 
-class FoamBatchCore:
+class FoamBatchCore(EpisodeReplay):
     """What a batch of foam envs on a worker pool keeps, whatever order it steps them in: the pool, the
     per-env seed streams and the tallies of the running episodes, from which it writes the record of an
-    episode its env could not report. BatchedFoamEnv (lock-step) and foam_bridge.async_batch build on it."""
+    episode its env could not report, and replays them in another batch (foam_bridge.replay).
+    BatchedFoamEnv (lock-step) and foam_bridge.async_batch build on it."""
 
     def __init__(
         self,
@@ -341,11 +342,7 @@ class BatchedFoamEnv(FoamBatchCore):
         """Each env's running episode as JSON-ready data, enough for :meth:`replay` in another batch
         (another process): its reset seed, the actions taken, K, return and last observation, and the
         env's seed stream (the seeds of the episodes to come)."""
-        return [{"seed": tally.seed, "actions": [list(pair) for pair in tally.actions],
-                 "iterations": tally.iterations, "return": tally.episode_return,
-                 "obs": [float(v) for v in tally.obs], "running": tally.seed is not None
-                 and not tally.reset_failure, "stream": json.dumps(self._streams[i].bit_generator.state)}
-                for i, tally in enumerate(self._tallies)]
+        return [self._episode_entry(i) for i in range(self.num_envs)]
 
     def replay(self, snapshot: list[dict[str, Any]]) -> str:
         """Bring every env to the episode state of ``snapshot``: reset it with the episode's seed and step
@@ -354,38 +351,10 @@ class BatchedFoamEnv(FoamBatchCore):
         batch must be reset before it is used."""
         if len(snapshot) != self.num_envs or not all(entry.get("running") for entry in snapshot):
             return f"the snapshot does not hold a running episode for each of the {self.num_envs} envs"
-        why = self._replay_resets(snapshot) or self._replay_steps(snapshot) or self._replay_differs(snapshot)
+        why = self._replay_episodes(dict(enumerate(snapshot)))
         if not why:
-            for stream, entry in zip(self._streams, snapshot, strict=True):
-                stream.bit_generator.state = json.loads(entry["stream"])
+            self._restore_streams(snapshot)
         return why
-
-    def _replay_resets(self, snapshot: list[dict[str, Any]]) -> str:
-        seeds = [int(entry["seed"]) for entry in snapshot]
-        for reply in self.backend.run([Request(i, "reset", {"seed": s, "options": None})
-                                       for i, s in enumerate(seeds)]):
-            if not reply.ok:
-                return f"env {reply.env_id}: reset failed: {reply.error or WORKER_DIED}"
-            self._start_tally(reply.env_id, seeds[reply.env_id], *reply.value)
-        return ""
-
-    def _replay_steps(self, snapshot: list[dict[str, Any]]) -> str:
-        for step in range(max(len(entry["actions"]) for entry in snapshot)):
-            due = {i: np.asarray(e["actions"][step], np.float64) for i, e in enumerate(snapshot)
-                   if len(e["actions"]) > step}
-            for reply in self.backend.run([Request(i, "step", {"action": a}) for i, a in due.items()]):
-                _, _, terminated, truncated, _ = self._step_result(reply, due[reply.env_id])
-                if terminated or truncated or not reply.ok:
-                    return f"env {reply.env_id}: its episode ended at replayed step {step + 1}"
-        return ""
-
-    def _replay_differs(self, snapshot: list[dict[str, Any]]) -> str:
-        for i, (tally, entry) in enumerate(zip(self._tallies, snapshot, strict=True)):
-            expected = (entry["iterations"], entry["return"], np.float32(entry["obs"]).tolist())
-            if (tally.iterations, tally.episode_return, tally.obs.tolist()) != expected:
-                return (f"env {i}: the replayed episode differs (K {tally.iterations}, snapshot "
-                        f"{entry['iterations']})")
-        return ""
 
 
 def _reset_cause(reply: Reply) -> str:

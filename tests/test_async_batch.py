@@ -1,4 +1,5 @@
-"""AsyncFoamEnv (foam_bridge.async_batch) and the stand-in solver (foam_bridge.standin), on the local pool.
+"""AsyncFoamEnv (foam_bridge.async_batch) and the stand-in solver (foam_bridge.standin), on the local pool;
+AsyncFoamEnv's snapshot and replay (a resume) from every state an env can be in.
 
 The stand-in sleeps milliseconds per step, so these run in seconds without OpenFOAM; the real solver
 goes through the same pool code (tests/test_foam_batched.py and friends cover it in lock-step).
@@ -6,6 +7,7 @@ goes through the same pool code (tests/test_foam_batched.py and friends cover it
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import time
@@ -16,7 +18,7 @@ import pytest
 from foam_marks import needs_openfoam
 
 from foam_bridge.async_batch import AsyncFoamEnv
-from foam_bridge.batched import BatchedFoamEnv
+from foam_bridge.batched import SEED_BOUND, BatchedFoamEnv
 from foam_bridge.config import FoamEnvConfig
 from foam_bridge.standin import Profile, StandIn, StandInEnv
 
@@ -182,3 +184,106 @@ def test_the_caller_s_errors_are_one_line_value_errors():
             env.send([[np.nan, 0.5]], ids)
         env.send([[0.5, 0.5]], ids)
         assert len(env.recv()[0]) == 1
+
+
+# ---- snapshot and replay (a resume) -------------------------------------------------------------------
+#: 5-10 ms steps, 30 ms resets: at most moments some env has a background reset in flight.
+SLOW_RESETS = Profile(iterations=(150, 220, 400), seconds_per_iteration=(1e-4, 5e-5, 1e-4), reset_s=0.03)
+
+
+class FailingSeeds(StandIn):
+    """A stand-in that refuses the resets with a seed in ``failing``: the same resets fail in any batch
+    with the same seed streams, a replayed one included (FailingResets counts per worker)."""
+
+    def __init__(self, profile: Profile, failing: set[int]) -> None:
+        super().__init__(profile)
+        self.failing = failing
+
+    def __call__(self, cfg: FoamEnvConfig, work_dir: Path, env_id: int) -> StandInEnv:
+        env = super().__call__(cfg, work_dir, env_id)
+        reset = env.reset
+
+        def failing_reset(seed=None, options=None):
+            if seed in self.failing:
+                raise RuntimeError(f"seed {seed} refused")
+            return reset(seed, options)
+
+        env.reset = failing_reset
+        return env
+
+
+def _stream_seeds(seed: int, num_envs: int, env_id: int, count: int) -> list[int]:
+    """The first ``count`` episode seeds of env ``env_id`` in a batch seeded with ``seed``."""
+    stream = np.random.default_rng(np.random.SeedSequence(seed).spawn(num_envs)[env_id])
+    return [int(stream.integers(SEED_BOUND)) for _ in range(count)]
+
+
+def _rows(ids, obs, reward, terminated, truncated, infos) -> list[tuple[int, tuple]]:
+    """(env, what its row says) of each row of a recv: observation, reward, ends, the ended episode."""
+    ended = dict(_episodes(infos, ids))
+    return [(int(i), (obs[r].tolist(), float(reward[r]), bool(terminated[r]), bool(truncated[r]),
+                      ended.get(int(i)))) for r, i in enumerate(ids)]
+
+
+def _places(snapshot: dict) -> set[str]:
+    """Where the snapshot's envs stand."""
+    places = set()
+    for i, entry in enumerate(snapshot["envs"]):
+        ready = entry.get("ready")
+        places |= {"with learner"} if i in snapshot["with_learner"] else set()
+        places |= {"step in flight"} if "step" in entry else set()
+        places |= {f"reset in flight ({entry['reset']['kind']})"} if "reset" in entry else set()
+        places |= {"ready" if not ready or not (ready["terminated"] or ready["truncated"])
+                   else "ended, ready"} if ready else set()
+        places |= {"reset failed"} if entry["reset_failure"] else set()
+    return places
+
+
+ALL_PLACES = {"with learner", "step in flight", "reset in flight (ended)", "reset in flight (retry)", "ready",
+              "ended, ready", "reset failed"}
+
+
+def test_a_snapshot_in_every_state_replays_into_a_new_batch_that_goes_on_as_the_first():
+    """Snapshots after recv (a checkpoint's moment), through JSON, replayed into a batch of other seeds:
+    its snapshot is the same, and from there each env returns the rows the first batch's env returned."""
+    seeds = _stream_seeds(3, 4, env_id=0, count=3)  # env 0's first auto-reset fails, and its retry
+    make = FailingSeeds(SLOW_RESETS, failing={seeds[1], seeds[2]})
+    with AsyncFoamEnv(CFG, num_envs=4, batch_size=1, pool=2, seed=0, make_env=make) as env:
+        env.async_reset(seed=3)
+        trace, snapshots = {i: [] for i in range(4)}, []
+        for round_ in range(60):
+            if round_ % 3 == 2:  # a slow learner: results pile up, ended episodes among them
+                time.sleep(0.04)
+            received = env.recv()
+            for i, row in _rows(*received):
+                trace[i].append(row)
+            counts = {i: len(rows) for i, rows in trace.items()}
+            snapshots.append((counts, json.loads(json.dumps(env.snapshot()))))
+            env.send(np.full((1, 2), 0.5), received[0])
+    covered, chosen = set(), []
+    for counts, snapshot in snapshots[:40]:  # each replayed one is followed for 10 rows of 20 recorded
+        if _places(snapshot) - covered:
+            covered |= _places(snapshot)
+            chosen.append((counts, snapshot))
+    assert covered == ALL_PLACES
+    with AsyncFoamEnv(CFG, num_envs=4, batch_size=1, pool=2, seed=99, make_env=make) as other:
+        for counts, snapshot in chosen:
+            assert other.replay(snapshot) == ""
+            assert other.snapshot() == snapshot
+            ids = snapshot["with_learner"]
+            went_on = {i: [] for i in range(4)}
+            for _ in range(10):
+                other.send(np.full((1, 2), 0.5), ids)
+                received = other.recv()
+                ids = received[0]
+                for i, row in _rows(*received):
+                    went_on[i].append(row)
+            for i, rows in went_on.items():
+                assert rows == trace[i][counts[i]:counts[i] + len(rows)], (i, snapshot)
+        # a snapshot that does not fit is refused, with why
+        snapshot, running = next((s, i) for _, s in chosen for i, e in enumerate(s["envs"])
+                                 if e["running"] and e["actions"])
+        snapshot["envs"][running]["iterations"] += 1
+        assert "differs" in other.replay(snapshot)
+        snapshot["with_learner"] = []
+        assert "does not place each env once" in other.replay(snapshot)

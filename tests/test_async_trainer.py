@@ -1,6 +1,7 @@
 """The trainer on an asynchronous env batch (PPOConfig.async_envs: jaxsimrl.envs.host_async and
 jaxsimrl.agents.ppo.rollout_async), on foam_bridge's stand-in solver: per-env GAE, one io_callback per
-learner step, each env's transitions paired with its own results, faults, and train-foam's use of it.
+learner step, each env's transitions paired with its own results, faults, and train-foam's use of it,
+killed with SIGKILL and resumed (lock-step and asynchronous alike).
 
 One trainer is compiled for the module; each test gives its host env a batch of its own (the callback
 reads ``vec.batch`` when it runs), so the tests cost the stand-in's sleeps, not a compile each.
@@ -8,9 +9,15 @@ reads ``vec.batch`` when it runs), so the tests cost the stand-in's sleeps, not 
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -219,28 +226,120 @@ def test_a_failed_reset_is_a_non_transition_and_training_goes_on(trainer):
     assert all(np.isfinite(row["value_loss"]) for row in rows)
 
 
-def test_train_foam_runs_asynchronously_and_resumes_with_new_episodes(tmp_path, capsys):
+#: The same PPO on a lock-step batch of B envs.
+LOCK_STEP = PPOConfig.from_dict({**PPO.to_dict(), "async_envs": None})
+
+
+def _plan(args: dict) -> Any:
+    """The FoamPlan of ``args`` ({"ppo": "async" or "lock-step", "episodes", "run", "resume"}) on the
+    stand-in: the plan :func:`main_of_a_killed_run` runs in a process of its own."""
     from jaxsimrl.runs.run_dir import RunDir
-    from jaxsimrl.training.foam import FoamPlan, train_foam
+    from jaxsimrl.training.foam import FoamPlan
+
+    run_path = Path(args["run"])
+    record = RunDir.existing(run_path).read_config() if args["resume"] else {}
+    return FoamPlan(PPO if args["ppo"] == "async" else LOCK_STEP, CFG, args["episodes"], seed=0, pool=2,
+                    backend="local", ray_address=None, run_path=run_path, resume=args["resume"],
+                    record=record, make_env=StandIn(FAST))
+
+
+def _train_foam(args: dict) -> dict:
+    from jaxsimrl.runs.run_dir import RunDir
+    from jaxsimrl.training.foam import train_foam
+
+    plan = _plan(args)
+    return train_foam(plan, RunDir.existing(plan.run_path) if plan.resume else RunDir.create(plan.run_path))
+
+
+def main_of_a_killed_run() -> None:
+    """``python -c`` entry of the run that the test below kills: sys.argv[1] is its :func:`_plan` JSON."""
+    _train_foam(json.loads(sys.argv[1]))
+
+
+def _per_env_episodes(run_path: Path, num_envs: int, up_to_update: int = 10**9) -> dict[int, list[tuple]]:
+    """Each env's episodes in episodes.csv (those of updates up to ``up_to_update``), in order: (seed,
+    iterations, outcome); the file is whole, in order, and holds no episode twice."""
+    from jaxsimrl.envs.foam_episodes import EPISODES_FILE, EpisodeLog
+
+    rows = EpisodeLog.load(run_path / EPISODES_FILE, up_to_update).rows
+    assert [r["index"] for r in rows] == list(range(len(rows)))
+    assert [r["update"] for r in rows] == sorted(r["update"] for r in rows)
+    assert len({(r["env"], r["seed"]) for r in rows}) == len(rows)
+    return {i: [(r["seed"], r["iterations"], r["outcome"]) for r in rows if r["env"] == i]
+            for i in range(num_envs)}
+
+
+def test_train_foam_runs_asynchronously_with_its_async_envs_fixed_on_resume(tmp_path, capsys):
+    from jaxsimrl.runs.run_dir import RunDir
 
     run_path = tmp_path / "run"
-    plan = FoamPlan(PPO, CFG, episodes=8, seed=0, pool=2, backend="local", ray_address=None,
-                    run_path=run_path, resume=False, make_env=StandIn(FAST))
-    summary = train_foam(plan, RunDir.create(run_path))
+    summary = _train_foam({"ppo": "async", "episodes": 8, "run": str(run_path), "resume": False})
     assert summary["episodes"] >= 8 and 0 < summary["pool_utilisation"] <= 1
     # the progress line's share is the workers' step seconds too (episodes' wall - idle read > 100 %)
     busy = [int(share) for share in re.findall(r"pool (\d+)% busy", capsys.readouterr().out)]
     assert busy and all(0 <= share <= 100 for share in busy), busy
-    record = RunDir.existing(run_path).read_config()
-    assert record["ppo"]["async_envs"] == E
-    resumed = FoamPlan(PPO, CFG, episodes=summary["episodes"] + 6, seed=0, pool=2, backend="local",
-                       ray_address=None, run_path=run_path, resume=True, record=record,
-                       make_env=StandIn(FAST))
-    again = train_foam(resumed, RunDir.existing(run_path))
-    assert "does not replay them" in capsys.readouterr().err
-    assert again["episodes"] >= summary["episodes"] + 6
+    assert RunDir.existing(run_path).read_config()["ppo"]["async_envs"] == E
     code = _cli_code(["train-foam", "--resume", str(run_path), "--async-envs", "3"])
     assert code == 2 and "differs from" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("batch", ["lock-step", "async"])
+def test_train_foam_killed_and_resumed_loses_no_episode_and_doubles_none(tmp_path, capsys, batch):
+    """SIGKILL after the second checkpoint, then --resume: the episodes in flight are replayed, so each
+    env's episodes are those of the same run never interrupted (its seed stream's, once each)."""
+    from jaxsimrl.runs.run_dir import RunDir
+
+    num_envs, run = (E if batch == "async" else B), tmp_path / "killed"
+    tests = Path(__file__).parent
+    args = {"ppo": batch, "episodes": 10**6, "run": str(run), "resume": False}
+    process = subprocess.Popen(
+        [sys.executable, "-c", f"import sys; sys.path.insert(0, {str(tests)!r}); "
+         f"from test_async_trainer import main_of_a_killed_run; main_of_a_killed_run()", json.dumps(args)],
+        env={**os.environ, "TMPDIR": str(tmp_path)}, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+        text=True)
+    deadline = time.monotonic() + 300
+    while not (run / "checkpoints" / "2").is_dir():
+        assert process.poll() is None and time.monotonic() < deadline, process.communicate()[1][-2000:]
+        time.sleep(0.05)
+    process.kill()  # SIGKILL, mid-update
+    process.communicate()
+    checkpoint = RunDir.existing(run).checkpoint_steps()[-1]
+    before = _per_env_episodes(run, num_envs, checkpoint)  # a resume drops the rows of later updates
+    target = sum(map(len, before.values())) + 8
+    _train_foam({**args, "episodes": target, "resume": True})
+    assert f"resumed at update {checkpoint} with its {num_envs} episodes in flight replayed" \
+        in capsys.readouterr().err
+    after = _per_env_episodes(run, num_envs)
+    _train_foam({**args, "run": str(tmp_path / "uninterrupted"), "episodes": target + 8})
+    never_stopped = _per_env_episodes(tmp_path / "uninterrupted", num_envs)
+    for i in range(num_envs):
+        common = min(len(after[i]), len(never_stopped[i]))
+        assert after[i][:len(before[i])] == before[i]
+        assert common > len(before[i]), (i, before[i], after[i], never_stopped[i])  # ran on after the kill
+        assert after[i][:common] == never_stopped[i][:common], (i, len(before[i]))
+
+
+def test_a_record_that_does_not_fit_the_learner_s_side_of_the_checkpoint_is_not_replayed():
+    """The learner's rows must be the recorded envs with the learner, with their observations, and every
+    env the record has a step or reset in flight for must be one whose result the learner awaits."""
+    from types import SimpleNamespace as Fake
+
+    from jaxsimrl.training.foam import _learner_mismatch
+
+    vec = Fake(async_envs=3)
+    record = {"envs": [{"obs": [0.5]}, {"obs": [1.0], "step": [0.5, 0.5]}, {"obs": [0.2], "ready": {}}],
+              "with_learner": [0], "ready": [2]}
+
+    def state(ids=(0,), obs=((0.5,),), valid=(False, True, False)):
+        return Fake(obs=obs, env_state=Fake(ids=ids, pending=Fake(valid=valid)))
+
+    assert _learner_mismatch(vec, record, state()) == ""
+    assert _learner_mismatch(vec, record, state(valid=(False, True, True))) == ""  # ready: sent or not
+    assert "holds" in _learner_mismatch(vec, record, state(ids=(1,)))
+    assert "observations" in _learner_mismatch(vec, record, state(obs=((0.25,),)))
+    assert "in flight" in _learner_mismatch(vec, record, state(valid=(False, False, False)))
+    assert "in flight" in _learner_mismatch(vec, record, state(valid=(True, True, False)))
+    assert "holds" in _learner_mismatch(vec, [{"obs": [0.5]}], state())  # a lock-step record
 
 
 def _cli_code(argv: list[str]) -> int:

@@ -48,8 +48,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--async-envs", type=positive_int, metavar="E", help="an asynchronous batch "
                    "(EnvPool-style): E > --num-envs cases on the pool, each learner step takes the "
                    "--num-envs that are ready first, so no worker waits for the slowest case (default: "
-                   "lock-step, every case every step); a resume replays no steps in flight, it starts new "
-                   "episodes")
+                   "lock-step, every case every step); a resume replays its episodes and steps in flight, "
+                   "as it does in lock-step")
     p.add_argument("--episodes", type=positive_int, help="episodes to train for (default 2000, the paper); "
                    "training stops after the update in which the target is reached, so the episodes that "
                    "also end in that update are kept too; with --resume it may be raised")

@@ -10,13 +10,13 @@ PPOConfig.async_envs the batch is asynchronous instead (``foam_bridge.async_batc
 whichever are ready first.
 
 Resuming: every checkpoint also records the episodes in flight (each env's episode seed, actions so far,
-K, observation and seed stream): the solvers did not survive the process, so a resume replays them (the
-solver is deterministic), checks K, return and observation against the record, and carries on
-mid-episode exactly as the run would have; where that fails (an older checkpoint, a changed machine)
-every env starts a new episode instead, and says so (an asynchronous batch always does: its envs stand
-mid-step, with results queued for the learner, so nothing is replayed; the episodes in flight were never
-logged, so none is doubled). A run killed before its first checkpoint starts
-over from its config.json. The run stops after the update in which the episode target is reached
+K, observation and seed stream; an asynchronous batch also where each env stands: with the learner, a
+step or reset in flight, or a result waiting, AsyncFoamEnv.snapshot): the solvers did not survive the
+process, so a resume replays them (the solver is deterministic), checks K, return and observation
+against the record, and carries on mid-episode exactly as the run would have (an asynchronous batch:
+but for the order in which its envs become ready); where that fails (an older checkpoint, a changed
+machine) every env starts a new episode instead, and says so. A run killed before its first checkpoint
+starts over from its config.json. The run stops after the update in which the episode target is reached
 (PPOConfig.total_steps is only a safety bound), or, with a one-line HostEnvError, when every episode so
 far has failed the same way.
 """
@@ -55,7 +55,7 @@ class FoamPlan:
     resume: bool
     record: dict[str, Any] = field(default_factory=dict)
     init_from: Any = None  # jaxsimrl.introspect.LoadedPolicy whose network the run starts from
-    #: What each worker of an asynchronous batch builds instead of a FoamCaseEnv (tests: foam_bridge.standin).
+    #: What each worker of the batch builds instead of a FoamCaseEnv (tests: foam_bridge.standin).
     make_env: Any = None
 
 
@@ -137,7 +137,7 @@ def _host_env(plan: FoamPlan) -> Any:
         from jaxsimrl.envs.foam import foam_vec_env
 
         return foam_vec_env(plan.foam, plan.ppo.num_envs, plan.pool, seed=plan.seed, backend=plan.backend,
-                            ray_address=plan.ray_address)
+                            ray_address=plan.ray_address, make_env=plan.make_env)
     from foam_bridge.async_batch import AsyncFoamEnv
     from foam_bridge.timing import TimedSteps
     from jaxsimrl.envs.host_async import AsyncHostVecEnv
@@ -149,10 +149,9 @@ def _host_env(plan: FoamPlan) -> Any:
 
 
 def _in_flight(vec: Any) -> dict[str, Any]:
-    """A checkpoint's record of the episodes in flight (BatchedFoamEnv.snapshot), for their replay on
-    resume. An asynchronous batch keeps none: its envs stand mid-step, with results queued for the
-    learner, and a resume starts new episodes (the ones in flight were never logged: none is doubled)."""
-    return {} if getattr(vec, "async_envs", None) else {IN_FLIGHT: vec.batch.snapshot()}
+    """A checkpoint's record of the episodes in flight (BatchedFoamEnv.snapshot, AsyncFoamEnv.snapshot),
+    for their replay on resume."""
+    return {IN_FLIGHT: vec.batch.snapshot()}
 
 
 def _async_busy_share(vec: Any, plan: FoamPlan) -> Callable[[], float] | None:
@@ -229,7 +228,8 @@ def _restored(trainer: Any, checkpoints: Any, key: Any, done: int, vec: Any) -> 
     state, meta = restore(checkpoints, trainer, key, done)
     why = _replay_in_flight(vec, meta.get(IN_FLIGHT), state)
     if not why:
-        _say(f"resumed at update {done} with its {vec.num_envs} episodes in flight replayed")
+        _say(f"resumed at update {done} with its {getattr(vec, 'async_envs', None) or vec.num_envs} "
+             f"episodes in flight replayed")
         return state
     _say(f"resumed at update {done}; its episodes in flight were not replayed ({why}): every env starts a "
          f"new episode")
@@ -238,16 +238,33 @@ def _restored(trainer: Any, checkpoints: Any, key: Any, done: int, vec: Any) -> 
 
 def _replay_in_flight(vec: Any, snapshot: Any, state: Any) -> str:
     """Replay a checkpoint's episodes in flight into the new batch; "" if it matches, else why not."""
-    import numpy as np
-
-    if getattr(vec, "async_envs", None):
-        return "an asynchronous batch (--async-envs) does not replay them"
     if not snapshot:
         return "the checkpoint has no record of them"
+    return _learner_mismatch(vec, snapshot, state) or vec.batch.replay(snapshot)
+
+
+def _learner_mismatch(vec: Any, snapshot: Any, state: Any) -> str:
+    """Why the record does not fit the learner's side of the checkpoint ("" if it does): the observations
+    of its rows (lock-step: every env's; asynchronous: those of the envs the last recv returned, in the
+    order of env_state.ids) and, asynchronous, which envs have a step in flight (its pending transitions)."""
+    import numpy as np
+
+    differs = "the record does not match the checkpoint's observations"
     saved = np.asarray(state.obs, np.float32).tolist()
-    if [np.float32(entry.get("obs", [])).tolist() for entry in snapshot] != saved:
-        return "the record does not match the checkpoint's observations"
-    return vec.batch.replay(snapshot)
+    if not getattr(vec, "async_envs", None):
+        return "" if [np.float32(entry.get("obs", [])).tolist() for entry in snapshot] == saved else differs
+    envs = snapshot.get("envs") if isinstance(snapshot, dict) else None
+    ids = np.asarray(state.env_state.ids).tolist()
+    if not isinstance(envs, list) or len(envs) != vec.async_envs \
+            or sorted(ids) != sorted(snapshot.get("with_learner", [])):
+        return "the record does not hold the envs the learner holds"
+    if [np.float32(envs[i].get("obs", [])).tolist() for i in ids] != saved:
+        return differs
+    pending = np.asarray(state.env_state.pending.valid).tolist()
+    sent = ["step" in entry or "reset" in entry for entry in envs]  # results the learner still awaits
+    if any(pending[i] for i in ids) or any(s and not p for s, p in zip(sent, pending, strict=True)):
+        return "the record does not match the checkpoint's steps in flight"
+    return ""
 
 
 class _HostTrainer:
