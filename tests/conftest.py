@@ -3,6 +3,7 @@
 import atexit
 import os
 import shutil
+import signal
 import tempfile
 
 # Every Ray process the suite starts (a local instance, ray.cluster_utils' multi-node clusters, and the
@@ -47,5 +48,19 @@ def _quick_xla_compiles() -> None:
         os.environ["XLA_FLAGS"] = f"{flags} --xla_backend_optimization_level=0".strip()
 
 
+def _ctrl_c_delivered() -> None:
+    """Let Ctrl-C reach the suite and the processes it starts, even when its shell ignored it.
+
+    A shell without job control starts a background command (`pytest ... &`) with SIGINT ignored, and
+    Python then installs no KeyboardInterrupt handler; the children inherit the ignore. The tests of
+    Ctrl-C handling (tests/test_runs.py, test_resume.py, test_solve.py) would then see a signal that is
+    never delivered: measured 2026-12-02, 2 of them failed in a suite started with `nohup ... &`.
+    Undoing it here (controller and each xdist worker import this file) restores what a terminal gives.
+    """
+    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
 _session_compilation_cache()
 _quick_xla_compiles()
+_ctrl_c_delivered()

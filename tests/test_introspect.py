@@ -101,7 +101,8 @@ def test_one_observation_answers_like_its_row_of_a_batch(policy):
     actions, _ = policy.act(OBS)
     single, _ = policy.act(OBS[1])
     assert single.shape == (3,)
-    np.testing.assert_allclose(single, actions[1], rtol=1e-6)
+    # a batch of one and a batch of three take different matmul kernels: equal up to float32 rounding
+    np.testing.assert_allclose(single, actions[1], rtol=1e-6, atol=1e-6)
     values = policy.value(OBS)
     assert values.shape == (3,) and np.ndim(policy.value(OBS[2])) == 0
     np.testing.assert_allclose(policy.value(OBS[2]), values[2], rtol=1e-6)
