@@ -332,7 +332,15 @@ def wait_until(condition: Callable[[], bool], process: subprocess.Popen, what: s
 
 
 @needs_openfoam
-def test_train_foam_reaches_its_target_with_a_node_killed_and_resumes(tmp_path):
+def test_train_foam_goes_on_after_a_node_loss_and_a_killed_driver_loses_no_episode(tmp_path):
+    """One cluster, three drivers (cheaper than a cluster per property):
+
+    1. a node killed mid-update: the run goes on with the survivor, reaches its target and says so;
+    2. a node added back, ``--resume`` with a higher target replays the episodes in flight at the last
+       checkpoint (taken after the loss), then the driver is killed with SIGKILL mid-way through the
+       update after its first checkpoint: no solver is left;
+    3. ``--resume`` again replays that checkpoint's episodes in flight, loses no recorded episode, writes
+       no duplicate or torn row, uses the node that joined, and reaches the target."""
     from foam_bridge.backends.reaper import processes_under
     from jaxsimrl.envs.foam_episodes import EpisodeLog
 
@@ -358,14 +366,22 @@ def test_train_foam_reaches_its_target_with_a_node_killed_and_resumes(tmp_path):
         assert not wait_gone(processes_under(tmp))
 
         joined = add_node(cluster, 1)  # room for a full pool again
-        target = len(rows) + 4  # the first run may have gone past 6 (whole updates)
+        first = _checkpoints(run)[-1]
+        # a target the run cannot reach before the driver is killed below: about 3 episodes end per update
+        target = len(rows) + 8
         resumed = _train_foam(processes, tmp, "--resume", str(run), "--episodes", str(target), *common)
-        out, err = resumed.communicate(timeout=600)
-        assert resumed.returncode == 0, err
-        rows = EpisodeLog.load(run / "episodes.csv", 10**9).rows
-        assert len(rows) >= target and any(row["node"].endswith(label_of(joined)) for row in rows)
-        assert json.loads((run / "summary.json").read_text())["workers_lost"] == []
-        assert not wait_gone(processes_under(tmp))
+        wait_until(lambda: _checkpoints(run)[-1] > first, resumed, "a checkpoint of the resumed run",
+                   seconds=400)
+        wait_until(lambda: bool(solver_pids(tmp)), resumed, "a solver of the next update", seconds=120)
+        time.sleep(1.0)
+        solvers = solver_pids(tmp)
+        os.kill(resumed.pid, signal.SIGKILL)
+        _, err = resumed.communicate(timeout=60)
+        assert f"resumed at update {first} with its 2 episodes in flight replayed" in err, err
+        # the dead driver's actors are killed by Ray, their solvers die with them (PDEATHSIG)
+        assert solvers and not wait_gone(solvers, 60), f"solvers outlived the driver: {solver_pids(tmp)}"
+        assert not wait_gone(processes_under(tmp), 30)
+        _check_resumed_after_a_kill(processes, tmp, run, target, common, joined)
 
 
 @needs_openfoam
@@ -395,12 +411,9 @@ def _checkpoints(run: Path) -> list[int]:
     return sorted(int(p.name) for p in folder.iterdir() if p.name.isdigit()) if folder.is_dir() else []
 
 
-@needs_openfoam
-def test_train_foam_killed_after_a_node_loss_resumes_losing_no_episode(tmp_path):
-    """A node killed mid-update, then the driver killed with SIGKILL mid-way through the update after
-    the first checkpoint that follows the loss: no solver is left, and ``--resume`` (onto a node added
-    back: the head alone has too few CPUs for the pool) replays the checkpoint's episodes in flight,
-    loses no recorded episode and writes no duplicate or torn row."""
+def _check_resumed_after_a_kill(processes: list[subprocess.Popen], tmp: Path, run: Path, target: int,
+                                common: list[str], joined: Any) -> None:
+    """Step 3 of the test above: resume the killed run and check that nothing recorded was lost."""
     import csv
 
     from test_train_foam import _check_records
@@ -409,58 +422,32 @@ def test_train_foam_killed_after_a_node_loss_resumes_losing_no_episode(tmp_path)
     from jaxsimrl.envs.foam_episodes import EpisodeLog
     from jaxsimrl.runs.checkpoint import Checkpoints
 
-    run, tmp = tmp_path / "run", tmp_path / "tmp"
-    tmp.mkdir()
-    with ray_cluster(1, 1) as (cluster, (doomed,), processes):
-        common = ["--backend", "ray", "--ray-address", cluster.address, "--pool", "2"]
-        # a target the run cannot reach before the driver is killed below, in the update after the first
-        # checkpoint after the loss (update 2 or 3): episodes take 2-3 steps, about 3 end per update
-        process = _train_foam(processes, tmp, *common, *DRIVER, "--episodes", "12", "--seed", "3",
-                              "--out", str(run))
-        wait_until(lambda: len(solver_pids(tmp)) >= 2, process, "two solvers running")
-        time.sleep(1.0)
-        before_loss = _checkpoints(run)
-        kill_node(cluster, doomed)
-        # a checkpoint saved after the loss, then the next update under way with a solver running
-        wait_until(lambda: bool(set(_checkpoints(run)) - set(before_loss)), process,
-                   "a checkpoint after the node loss", seconds=400)
-        wait_until(lambda: bool(solver_pids(tmp)), process, "a solver of the next update", seconds=120)
-        time.sleep(1.0)
-        solvers = solver_pids(tmp)
-        os.kill(process.pid, signal.SIGKILL)
-        process.communicate(timeout=60)
-        # the dead driver's actors are killed by Ray, their solvers die with them (PDEATHSIG)
-        assert solvers and not wait_gone(solvers, 60), f"solvers outlived the driver: {solver_pids(tmp)}"
-        assert not wait_gone(processes_under(tmp), 30)
-
-        done = _checkpoints(run)[-1]
-        with Checkpoints(run / "checkpoints", writable=False) as checkpoints:
-            in_flight = checkpoints.read_meta(done)["in_flight"]
-        before = [row for row in EpisodeLog.load(run / "episodes.csv", 10**9).rows if row["update"] <= done]
-        assert any(row["cause"].startswith("node lost") for row in before), before  # the loss is kept
-
-        add_node(cluster, 1)  # the head alone has 1 CPU: a pool of 2 needs a node back
-        target = 14  # raised from 12
-        resumed = _train_foam(processes, tmp, "--resume", str(run), "--episodes", str(target), *common)
-        out, err = resumed.communicate(timeout=600)
-        assert resumed.returncode == 0, err
-        assert "Traceback" not in err and f"resumed at update {done} with its 2 episodes in flight replayed" \
-            in err, err
-        rows, metrics = _check_records(run)  # indices in order, each update's metrics row exactly once
-        assert len(rows) >= target and metrics[-1]["update"] == _checkpoints(run)[-1]
-        keys = [(row["env"], row["seed"], row["update"]) for row in rows]
-        assert len(keys) == len(set(keys)), keys  # no duplicate row
-        text = (run / "episodes.csv").read_text()  # no torn line
-        lines = list(csv.reader(text.splitlines(keepends=True)))
-        assert text.endswith("\n") and all(len(line) == len(lines[0]) for line in lines), lines
-        # no episode lost: every row recorded up to the checkpoint is still there, unchanged
-        same = ("index", "env", "update", "seed", "steps", "iterations", "outcome", "cause", "actions",
-                "node")
-        assert [[r[k] for k in same] for r in rows[:len(before)]] == [[r[k] for k in same] for r in before]
-        # each episode in flight at the checkpoint was replayed and finished: its env's next row
-        for env_id, entry in enumerate(in_flight):
-            nxt = next(r for r in rows if r["env"] == env_id and r["update"] > done)
-            assert nxt["seed"] == entry["seed"], (env_id, nxt, entry)
-            replayed = np.reshape(nxt["actions"][:len(entry["actions"])], (-1, 2))  # csv keeps 6 digits
-            assert np.allclose(replayed, np.reshape(entry["actions"], (-1, 2)), atol=1e-6), (nxt, entry)
-        assert not wait_gone(processes_under(tmp))
+    done = _checkpoints(run)[-1]
+    with Checkpoints(run / "checkpoints", writable=False) as checkpoints:
+        in_flight = checkpoints.read_meta(done)["in_flight"]
+    before = [row for row in EpisodeLog.load(run / "episodes.csv", 10**9).rows if row["update"] <= done]
+    assert any(row["cause"].startswith("node lost") for row in before), before  # the loss is kept
+    resumed = _train_foam(processes, tmp, "--resume", str(run), "--episodes", str(target), *common)
+    out, err = resumed.communicate(timeout=600)
+    assert resumed.returncode == 0, err
+    assert "Traceback" not in err and f"resumed at update {done} with its 2 episodes in flight replayed" \
+        in err, err
+    rows, metrics = _check_records(run)  # indices in order, each update's metrics row exactly once
+    assert len(rows) >= target and metrics[-1]["update"] == _checkpoints(run)[-1]
+    keys = [(row["env"], row["seed"], row["update"]) for row in rows]
+    assert len(keys) == len(set(keys)), keys  # no duplicate row
+    text = (run / "episodes.csv").read_text()  # no torn line
+    lines = list(csv.reader(text.splitlines(keepends=True)))
+    assert text.endswith("\n") and all(len(line) == len(lines[0]) for line in lines), lines
+    # no episode lost: every row recorded up to the checkpoint is still there, unchanged
+    same = ("index", "env", "update", "seed", "steps", "iterations", "outcome", "cause", "actions", "node")
+    assert [[r[k] for k in same] for r in rows[:len(before)]] == [[r[k] for k in same] for r in before]
+    # each episode in flight at the checkpoint was replayed and finished: its env's next row
+    for env_id, entry in enumerate(in_flight):
+        nxt = next(r for r in rows if r["env"] == env_id and r["update"] > done)
+        assert nxt["seed"] == entry["seed"], (env_id, nxt, entry)
+        replayed = np.reshape(nxt["actions"][:len(entry["actions"])], (-1, 2))  # csv keeps 6 digits
+        assert np.allclose(replayed, np.reshape(entry["actions"], (-1, 2)), atol=1e-6), (nxt, entry)
+    assert any(row["node"].endswith(label_of(joined)) for row in rows)
+    assert json.loads((run / "summary.json").read_text())["workers_lost"] == []
+    assert not wait_gone(processes_under(tmp))
