@@ -370,8 +370,8 @@ def test_train_foam_goes_on_after_a_node_loss_and_a_killed_driver_loses_no_episo
         # a target the run cannot reach before the driver is killed below: about 3 episodes end per update
         target = len(rows) + 8
         resumed = _train_foam(processes, tmp, "--resume", str(run), "--episodes", str(target), *common)
-        wait_until(lambda: _checkpoints(run)[-1] > first, resumed, "a checkpoint of the resumed run",
-                   seconds=400)
+        wait_until(lambda: max(_checkpoints(run), default=0) > first, resumed,
+                   "a checkpoint of the resumed run", seconds=400)
         wait_until(lambda: bool(solver_pids(tmp)), resumed, "a solver of the next update", seconds=120)
         time.sleep(1.0)
         solvers = solver_pids(tmp)
