@@ -1,7 +1,7 @@
 """The trainer on an asynchronous env batch (PPOConfig.async_envs: jaxsimrl.envs.host_async and
 jaxsimrl.agents.ppo.rollout_async), on foam_bridge's stand-in solver: per-env GAE, one io_callback per
 learner step, each env's transitions paired with its own results, faults, and train-foam's use of it,
-killed with SIGKILL and resumed (lock-step and asynchronous alike).
+killed with SIGKILL and resumed.
 
 One trainer is compiled for the module; each test gives its host env a batch of its own (the callback
 reads ``vec.batch`` when it runs), so the tests cost the stand-in's sleeps, not a compile each.
@@ -226,19 +226,15 @@ def test_a_failed_reset_is_a_non_transition_and_training_goes_on(trainer):
     assert all(np.isfinite(row["value_loss"]) for row in rows)
 
 
-#: The same PPO on a lock-step batch of B envs.
-LOCK_STEP = PPOConfig.from_dict({**PPO.to_dict(), "async_envs": None})
-
-
 def _plan(args: dict) -> Any:
-    """The FoamPlan of ``args`` ({"ppo": "async" or "lock-step", "episodes", "run", "resume"}) on the
+    """The FoamPlan of ``args`` ({"episodes", "run", "resume"}) on the
     stand-in: the plan :func:`main_of_a_killed_run` runs in a process of its own."""
     from jaxsimrl.runs.run_dir import RunDir
     from jaxsimrl.training.foam import FoamPlan
 
     run_path = Path(args["run"])
     record = RunDir.existing(run_path).read_config() if args["resume"] else {}
-    return FoamPlan(PPO if args["ppo"] == "async" else LOCK_STEP, CFG, args["episodes"], seed=0, pool=2,
+    return FoamPlan(PPO, CFG, args["episodes"], seed=0, pool=2,
                     backend="local", ray_address=None, run_path=run_path, resume=args["resume"],
                     record=record, make_env=StandIn(FAST))
 
@@ -273,7 +269,7 @@ def test_train_foam_runs_asynchronously_with_its_async_envs_fixed_on_resume(tmp_
     from jaxsimrl.runs.run_dir import RunDir
 
     run_path = tmp_path / "run"
-    summary = _train_foam({"ppo": "async", "episodes": 8, "run": str(run_path), "resume": False})
+    summary = _train_foam({"episodes": 8, "run": str(run_path), "resume": False})
     assert summary["episodes"] >= 8 and 0 < summary["pool_utilisation"] <= 1
     # the progress line's share is the workers' step seconds too (episodes' wall - idle read > 100 %)
     busy = [int(share) for share in re.findall(r"pool (\d+)% busy", capsys.readouterr().out)]
@@ -283,15 +279,15 @@ def test_train_foam_runs_asynchronously_with_its_async_envs_fixed_on_resume(tmp_
     assert code == 2 and "differs from" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("batch", ["lock-step", "async"])
-def test_train_foam_killed_and_resumed_loses_no_episode_and_doubles_none(tmp_path, capsys, batch):
+def test_train_foam_killed_and_resumed_loses_no_episode_and_doubles_none(tmp_path, capsys):
     """SIGKILL after the second checkpoint, then --resume: the episodes in flight are replayed, so each
-    env's episodes are those of the same run never interrupted (its seed stream's, once each)."""
+    env's episodes are those of the same run never interrupted (its seed stream's, once each). The
+    lock-step batch's kill and resume is tests/test_train_foam.py's, with the real solver."""
     from jaxsimrl.runs.run_dir import RunDir
 
-    num_envs, run = (E if batch == "async" else B), tmp_path / "killed"
+    num_envs, run = E, tmp_path / "killed"
     tests = Path(__file__).parent
-    args = {"ppo": batch, "episodes": 10**6, "run": str(run), "resume": False}
+    args = {"episodes": 10**6, "run": str(run), "resume": False}
     process = subprocess.Popen(
         [sys.executable, "-c", f"import sys; sys.path.insert(0, {str(tests)!r}); "
          f"from test_async_trainer import main_of_a_killed_run; main_of_a_killed_run()", json.dumps(args)],
