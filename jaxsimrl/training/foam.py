@@ -249,17 +249,20 @@ def _learner_mismatch(vec: Any, snapshot: Any, state: Any) -> str:
     order of env_state.ids) and, asynchronous, which envs have a step in flight (its pending transitions)."""
     import numpy as np
 
-    differs = "the record does not match the checkpoint's observations"
-    saved = np.asarray(state.obs, np.float32).tolist()
+    def differs(entries: list) -> str:
+        saved = np.asarray(state.obs, np.float32).tolist()
+        same = [np.float32(entry.get("obs", [])).tolist() for entry in entries] == saved
+        return "" if same else "the record does not match the checkpoint's observations"
+
     if not getattr(vec, "async_envs", None):
-        return "" if [np.float32(entry.get("obs", [])).tolist() for entry in snapshot] == saved else differs
+        return differs(snapshot)
     envs = snapshot.get("envs") if isinstance(snapshot, dict) else None
     ids = np.asarray(state.env_state.ids).tolist()
     if not isinstance(envs, list) or len(envs) != vec.async_envs \
             or sorted(ids) != sorted(snapshot.get("with_learner", [])):
         return "the record does not hold the envs the learner holds"
-    if [np.float32(envs[i].get("obs", [])).tolist() for i in ids] != saved:
-        return differs
+    if mismatch := differs([envs[i] for i in ids]):
+        return mismatch
     pending = np.asarray(state.env_state.pending.valid).tolist()
     sent = ["step" in entry or "reset" in entry for entry in envs]  # results the learner still awaits
     if any(pending[i] for i in ids) or any(s and not p for s, p in zip(sent, pending, strict=True)):
