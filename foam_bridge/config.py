@@ -137,9 +137,14 @@ class FoamEnvConfig:
             the first one that passes ends the episode (converged at that boundary). Every check is
             in the episode record's "confirmations".
         residual_features: extra observation entries: log10 of the latest initial residual of each
-            ``convergence`` field at each of the last N step boundaries (0 = the paper's 1-D state;
-            before the first boundaries: 0). Their trends are the differences of these levels, which
-            the policy's first (linear) layer forms exactly, so they are not observed separately.
+            observed field (:attr:`observed`) at each of the last N step boundaries (0 = the paper's 1-D
+            state; before the first boundaries: 0). Their trends are the differences of these levels,
+            which the policy's first (linear) layer forms exactly, so they are not observed separately.
+        observed_fields: the fields whose residuals the residual features hold, in order. ``None``
+            (default): the ``convergence`` fields in its order (every run before this field). Set apart
+            from the criterion so that a controller run on a user's case (jaxsimrl solve) sees the
+            fields it was trained on, in its order, while the case keeps its own criterion; a field
+            the solver does not solve reads as a residual of 1 (log 0).
         observe_progress: one more observation entry, K / max_iterations (0 at reset, 1 at the cap).
         observe_action: action_size more entries, the factors in force (the last action after
             clipping; at reset, before any action: the box centre (action_low + action_high) / 2).
@@ -209,6 +214,7 @@ class FoamEnvConfig:
     observe_progress: bool = False
     observe_action: bool = False
     scale_free_state: bool = False
+    observed_fields: tuple[str, ...] | None = None
 
     def __post_init__(self) -> None:
         # the default box follows the action's size: [0.2, 0.95]^3 with alpha_t (see action_low)
@@ -257,6 +263,11 @@ class FoamEnvConfig:
                    "confirm_alpha_u", factor, "None or a factor in (0, 1)")
         _check(_is_int(self.residual_features) and self.residual_features >= 0, "residual_features",
                self.residual_features, "an integer >= 0")
+        if self.observed_fields is not None:
+            names = self.observed_fields
+            _check(isinstance(names, tuple) and len(names) > 0 and len(set(names)) == len(names)
+                   and all(isinstance(name, str) and name != "" for name in names), "observed_fields",
+                   names, "None or a non-empty tuple of distinct field names")
         _check(self.reward in REWARDS, "reward", self.reward, f"one of {REWARDS}")
         for name in ("observe_progress", "observe_action", "scale_free_state"):
             _check(isinstance(getattr(self, name), bool), name, getattr(self, name), "true or false")
@@ -335,16 +346,23 @@ class FoamEnvConfig:
         return dataclasses.replace(self, case_dir=_absolute(self.case_dir), work_dir=_absolute(self.work_dir))
 
     @property
+    def observed(self) -> tuple[str, ...]:
+        """The fields the residual features observe, in order: ``observed_fields``, else the criterion's."""
+        return tuple(self.convergence) if self.observed_fields is None else tuple(self.observed_fields)
+
+    @property
     def observation_size(self) -> int:
         """Length of the observation vector: the state, the residual features, the progress, the action."""
-        return (1 + self.residual_features * len(self.convergence) + int(self.observe_progress)
+        return (1 + self.residual_features * len(self.observed) + int(self.observe_progress)
                 + self.action_size * int(self.observe_action))
 
     # ---- JSON (the "foam" section of a train-foam run's config.json) ----------------------------------
     def to_json(self) -> dict[str, Any]:
         """Every field by name as JSON-ready values (tuples as lists, ``convergence`` as a plain dict,
-        paths as strings); the inverse of :meth:`from_json`."""
-        return {item.name: _to_json(getattr(self, item.name)) for item in dataclasses.fields(self)}
+        paths as strings); the inverse of :meth:`from_json`. ``observed_fields`` only when set: a config
+        without it writes the JSON it always wrote (config.json, reference cache keys)."""
+        return {item.name: _to_json(getattr(self, item.name)) for item in dataclasses.fields(self)
+                if item.name not in _OMITTED_WHEN_NONE or getattr(self, item.name) is not None}
 
     @classmethod
     def from_json(cls, data: Any) -> FoamEnvConfig:
@@ -377,7 +395,9 @@ class FoamEnvConfig:
 
 
 #: Fields stored as JSON lists that FoamEnvConfig holds as tuples.
-_JSON_TUPLE_FIELDS = ("action_low", "action_high", "turbulence_fields", "inlet_turbulence")
+_JSON_TUPLE_FIELDS = ("action_low", "action_high", "turbulence_fields", "inlet_turbulence", "observed_fields")
+#: Fields to_json leaves out at None (added after runs were written; their JSON stays byte-identical).
+_OMITTED_WHEN_NONE = ("observed_fields",)
 
 
 def _to_json(value: Any) -> Any:

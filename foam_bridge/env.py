@@ -196,7 +196,7 @@ class FoamCaseEnv:
         self._unconfirmed = False  # a check has failed: the boundaries are checked from now on
         self._cost = 0.0
         self._features: deque[np.ndarray] = deque(
-            [np.zeros(len(self.cfg.convergence))] * self.cfg.residual_features,
+            [np.zeros(len(self.cfg.observed))] * self.cfg.residual_features,
             maxlen=self.cfg.residual_features or None)
         self._episode = {"env_id": self.env_id, "seed": seed, "inlet_velocity": velocity,
                          "step_height": math.nan if self._height is None else self._height, "actions": [],
@@ -423,8 +423,12 @@ class FoamCaseEnv:
 
     def _update_observation(self, outcome: str, residuals: dict[str, float]) -> None:
         if self.cfg.residual_features:
-            logs = [np.log10(max(residuals.get(name, 1.0), 1e-30)) if np.isfinite(residuals.get(name, 1.0))
-                    else 0.0 for name in self.cfg.convergence]
+            # the observed fields, which need not be the criterion's (FoamEnvConfig.observed_fields): the
+            # parser holds every solved field's residual; a field not solved reads as 1 (log 0)
+            solved = self._parser.residuals
+            levels = [residuals.get(name, field_residual(solved, name)) for name in self.cfg.observed]
+            logs = [np.log10(max(level, 1e-30)) if level is not None and np.isfinite(level) else 0.0
+                    for level in levels]
             self._features.append(np.asarray(logs))
         parser = self._parser
         # a failed step keeps the last state read (the solver's last one may be a blow-up)
@@ -484,7 +488,7 @@ def observation_spec(cfg: FoamEnvConfig) -> BoxSpec:
     """Box of the observation (float32): the scaled state in [0, B], the log10 residual features in
     [-B, B], then the progress and the factors in [0, B], B = OBSERVATION_BOUND."""
     n = cfg.observation_size
-    features = cfg.residual_features * len(cfg.convergence)
+    features = cfg.residual_features * len(cfg.observed)
     low = np.array([0.0] + [-OBSERVATION_BOUND] * features + [0.0] * (n - 1 - features), dtype=np.float32)
     return BoxSpec(low=low, high=np.full(n, OBSERVATION_BOUND, dtype=np.float32), shape=(n,))
 

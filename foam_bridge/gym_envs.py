@@ -35,7 +35,7 @@ __all__ = ["CONFIG_FIELDS", "RelaxationControlEnv", "RelaxationControlVecEnv", "
 
 CONFIG_FIELDS = tuple(f.name for f in dataclasses.fields(FoamEnvConfig))
 _TUPLE_FIELDS = ("inlet_velocity", "step_height", "action_low", "action_high", "turbulence_fields",
-                 "inlet_turbulence")
+                 "inlet_turbulence", "observed_fields")
 
 
 def _config_from_kwargs(kwargs: dict[str, Any]) -> FoamEnvConfig:

@@ -73,7 +73,7 @@ def foam_obs_names(cfg: Any) -> tuple[str, ...]:
     blocks = cfg.residual_features
     for block in range(blocks):
         lag = blocks - 1 - block
-        names += [f"log10 r_{field}" + (f" (t-{lag})" if lag else "") for field in cfg.convergence]
+        names += [f"log10 r_{field}" + (f" (t-{lag})" if lag else "") for field in cfg.observed]
     if cfg.observe_progress:
         names.append("progress")
     if cfg.observe_action:

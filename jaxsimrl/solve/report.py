@@ -1,11 +1,12 @@
 """``solve``'s report: ``OUT/solve.json`` (atomic), ``OUT/solve.png`` and the printed summary.
 
 solve.json holds: status ("incomplete" while running, "interrupted", "failed", "complete"), the case and
-output, the controller's provenance, the settings (criterion, box, confirmation factor, budget), the
-result (outcome, converged per the confirmation check, iterations, wall time, the solver's CPU time,
-where the fields come from, solve's overhead beyond the solver's own work), every step's factors and
-residuals, the fallback events, the convergence checks, the per-iteration residual histories and, with
---compare, the comparison runs side by side with the ratios controller / own.
+output, the controller's provenance, the settings (criterion, box, confirmation factor, budget, the case
+field observed for each field the controller observes), the result (outcome, converged per the
+confirmation check, iterations, wall time, the solver's CPU time, where the fields come from, solve's
+overhead beyond the solver's own work), every step's factors and residuals, the fallback events, the
+convergence checks, the per-iteration residual histories and, with --compare, the comparison runs side
+by side with the ratios controller / own.
 """
 
 from __future__ import annotations
@@ -81,8 +82,9 @@ def residual_history(history: list[dict[str, float]], fields: list[str]) -> dict
 
 def build_report(case: Path, out: Path, controller: Any, cfg: Any, run: Any, rescue: Any,
                  time_name: str | None, wall: float, comparisons: dict[str, Any],
-                 episode: Path) -> SolveReport:
-    """Everything solve.json holds (see the module docstring)."""
+                 episode: Path, observed: dict[str, str] | None = None) -> SolveReport:
+    """Everything solve.json holds (see the module docstring); ``observed``: {the policy's observed
+    field: the case field that stands for it} (jaxsimrl.solve.fields), None if it observes none."""
     fields = list(cfg.convergence)
     parser = LogParser("", "")
     log = episode / "log.simpleFoam"
@@ -109,7 +111,8 @@ def build_report(case: Path, out: Path, controller: Any, cfg: Any, run: Any, res
             "cores": os.cpu_count(), "controller": controller.provenance,
             "settings": {"criterion": dict(cfg.convergence), "confirm_alpha_u": cfg.confirm_alpha_u,
                          "action_low": list(cfg.action_low), "action_high": list(cfg.action_high),
-                         "interval": cfg.interval, "max_iterations": cfg.max_iterations},
+                         "interval": cfg.interval, "max_iterations": cfg.max_iterations,
+                         "observed_fields": observed},
             "result": result, "fallback": run.events, "steps": run.steps,
             "confirmations": record.get("confirmations", []),
             "residuals": {"controlled": residual_history(parser.history, fields)}}

@@ -21,6 +21,7 @@ from foam_bridge.errors import OpenFOAMNotFoundError
 from foam_bridge.export import export_case
 from jaxsimrl.solve.controller import BackgroundLoad, Controller, as_controller, policy_env_config
 from jaxsimrl.solve.drive import ControlledRun, drive
+from jaxsimrl.solve.fields import observed_mapping
 from jaxsimrl.solve.own import OwnProcess, OwnRun
 from jaxsimrl.solve.report import SolveReport, build_report, preload_plotting, write_report, write_status
 from jaxsimrl.solve.settings import (
@@ -120,8 +121,9 @@ def _solve(case: Path, out: Path, policy: Any, compare: bool, constant: Sequence
     phases["case_check_s"], mark = time.monotonic() - mark, time.monotonic()
     parallel = len(os.sched_getaffinity(0)) >= 2  # else the runs would share one core: one after the other
     comparisons = _start_comparisons(case, out, compare, constant, settings.flat, others) if parallel else {}
+    observed = observed_mapping(trained, checked.info.solved_fields)[0]
     say(f"solve {case}: criterion {dict(cfg.convergence)}, box {cfg.action_low}-{cfg.action_high}, "
-        f"budget {budget} iterations")
+        f"budget {budget} iterations" + (f", observes {observed}" if observed else ""))
     controller = policy if loading is None else loading
     run = _controlled(cfg, trained, settings, controller, watchdog, say, checked)
     controller = controller if loading is None else loading.result()
@@ -136,7 +138,8 @@ def _solve(case: Path, out: Path, policy: Any, compare: bool, constant: Sequence
     if not parallel:
         comparisons = _start_comparisons(case, out, compare, constant, settings.flat, others)
     results = {name: process.result(24 * 3600.0) for name, process in comparisons.items()}
-    report = build_report(case, out, controller, cfg, run, rescue, time_name, wall, results, episode)
+    report = build_report(case, out, controller, cfg, run, rescue, time_name, wall, results, episode,
+                          observed if run.outcome != "not run" else None)
     report.data["result"]["phases"] = phases
     report.data["compare_parallel"] = parallel
     write_report(out, report)
@@ -147,7 +150,7 @@ def _controlled(cfg: Any, trained: Any, settings: Any, controller: Any, watchdog
                 say: Callable[[str], None], checked: CheckedCase) -> ControlledRun:
     """The controlled run, or none (outcome "not run") when the controller does not apply to the case.
     ``controller``: a Controller, or its BackgroundLoad (waited for once the worker has built the case)."""
-    skip = not_applicable(trained, settings)
+    skip = not_applicable(trained, settings, checked.info.solved_fields)
     if skip is not None:
         say(skip)
         return ControlledRun(outcome="not run", events=[{"kind": "not applicable", "at_iteration": 0,

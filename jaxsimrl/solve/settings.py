@@ -1,6 +1,7 @@
 """What ``solve`` runs a user's case with: the env config and the case's own factors and budget.
 
-The MDP is the policy's (step interval, observation layout, what the actions mean), everything about
+The MDP is the policy's (step interval, observation layout, what the actions mean, the fields whose
+residuals it observes: the case's fields of the same roles, jaxsimrl.solve.fields), everything about
 the case is the case's (its residualControl as the criterion, the action box its algorithm tolerates,
 its turbulence relaxation, its inlet, its own iteration budget), and convergence is confirmed at a
 fixed relaxation (foam_bridge.confirm) so that no unconverged field is reported as converged.
@@ -17,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from foam_bridge.config import FoamEnvConfig
+from jaxsimrl.solve.fields import observed_mapping
 
 #: FoamEnvConfig fields that define the policy's MDP (observation, action meaning); copied when present.
 POLICY_FIELDS = ("interval", "residual_features", "state_scale", "observe_progress", "observe_action",
@@ -82,16 +84,18 @@ def _is_true(value: Any) -> bool:
     return value is True or (isinstance(value, str) and value.lower() in ("yes", "on", "true", "y", "t"))
 
 
-def not_applicable(policy_cfg: FoamEnvConfig, settings: CaseSettings) -> str | None:
+def not_applicable(policy_cfg: FoamEnvConfig, settings: CaseSettings,
+                   solved: Sequence[str] = ()) -> str | None:
     """Why the controller does not apply to the case (None if it does): its factors were learned for one
     pressure-velocity algorithm and mean something else under the other (SIMPLEC tolerates alpha_p ~0.9,
     plain SIMPLE needs ~0.3: foam_bridge.user_case), so a controller trained on SIMPLEC is not used on a
-    plain SIMPLE case, nor the reverse."""
+    plain SIMPLE case, nor the reverse; and a controller that observes residuals needs a case field for
+    each field it observes (jaxsimrl.solve.fields; ``solved``: the case's CaseInfo.solved_fields)."""
     trained = policy_cfg.variant if policy_cfg.case_dir is None else policy_cfg.simple_variant
     if trained is not None and trained != settings.variant:
         return (f"the controller was trained on {trained} and the case uses {settings.variant}: its factors "
                 f"do not transfer, so the case runs with its own settings")
-    return None
+    return observed_mapping(policy_cfg, solved)[1]
 
 
 def _factor(tree: Any, name: str) -> float | None:
@@ -132,8 +136,9 @@ def solve_config(case: Path, policy_cfg: FoamEnvConfig, work: Path, max_iteratio
 
     Starting from the check's build is safe: the check builds exactly what the env would (the same
     copy, mesh and dry run, foam_bridge.base_case.check_case), from this config before the case's own
-    criterion and box are applied, and neither enters the build (the dry run relaxes with the case's own
-    factors, or the box's lower corner, which is the built-in one for a case without own factors)."""
+    criterion, box and observed fields are applied, and none enters the build (the dry run relaxes with
+    the case's own factors, or the box's lower corner, which is the built-in one for a case without own
+    factors)."""
     from foam_bridge.base_case import check_case, check_case_files
     from foam_bridge.openfoam import find_openfoam
     from jaxsimrl.envs.foam_config import user_case_config
@@ -152,7 +157,11 @@ def solve_config(case: Path, policy_cfg: FoamEnvConfig, work: Path, max_iteratio
     check_case_files(case, cfg, need_mesh=False)  # a wrong path says so, OpenFOAM or not
     info = check_case(case, cfg, find_openfoam(cfg.openfoam_path), work)
     checked = CheckedCase(work / "checked", info)
-    return user_case_config(cfg, explicit, checked=(checked.directory, checked.info)), checked
+    cfg = user_case_config(cfg, explicit, checked=(checked.directory, checked.info))
+    mapping, _ = observed_mapping(policy_cfg, info.solved_fields)  # no mapping: not_applicable says why
+    if mapping is not None:
+        cfg = dataclasses.replace(cfg, observed_fields=tuple(mapping.values())).validate()
+    return cfg, checked
 
 
 def own_action(settings: CaseSettings, cfg: FoamEnvConfig, size: int) -> list[float]:
