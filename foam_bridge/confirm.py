@@ -12,12 +12,18 @@ solution (experiments/foam/README.md).
 The check normalises at one fixed relaxation instead: one SIMPLE iteration from the run's own fields (a
 scratch copy of the case at iteration K, started from its latest time) with alpha_u =
 ``confirm_alpha_u``, the step's alpha_p and the case's turbulence factor, whose initial residuals are
-read from its log. When the turbulence factor is an action (alpha_t), the agent can move the k/omega
-residuals the same way: the check then relaxes them at ``confirm_alpha_u`` too and checks them. A policy
-trained with the step's alpha_t in the check learned to drop alpha_t to ~0.3 on its last step
-(experiments/controller/README.md). The initial U residual of that iteration is computed from the fields
-of K before anything is solved, so the check measures the run's state, not a step of its own. It passes
-when the fields whose normalisation the agent moves (:func:`_checked_fields`) meet the criterion.
+read from its log. When the turbulence factor is the agent's (alpha_t, or alpha_u that it follows), the
+agent can move the k/omega residuals the same way: the check then relaxes them at ``confirm_alpha_u`` too,
+and checks them when the step relaxed them *below* it. A policy trained with the step's alpha_t in the
+check learned to drop alpha_t to ~0.3 on its last step (experiments/controller/README.md). A step at a
+factor >= ``confirm_alpha_u`` was held by the solver's own test to a normalisation at least as strict as
+the check's (U at 0.95 reads 0.83-0.88 x at 0.9), so nothing was gained and they are not re-read: a
+restart of kOmegaSSTLM (OpenFOAM v1912) solves k before it recomputes gammaIntEff, which it neither
+writes nor reads, so its first k solve runs without production and every restart of T3A reads k ~3e-2
+and ReThetat ~4e-2 at 0.9 from fields whose own k residual is 1e-6 to 1e-8 (k 1.5e-3 even at 0.3):
+checked there, no run could pass. The initial U residual of that iteration is computed from the
+fields of K before anything is solved, so the check measures the run's state, not a step of its own. It
+passes when the fields whose normalisation the agent lowered (:func:`_checked_fields`) meet the criterion.
 Measured on the full mesh (test criterion): runs with alpha_u near 0.95 read 0.83-0.88 x their own U
 residual at 0.9; random factors that met the criterion read 1.3-6.7 x the threshold
 (experiments/foam/README.md).
@@ -41,10 +47,13 @@ from foam_bridge.logparse import LogParser, field_residual
 from foam_bridge.openfoam import OpenFOAM
 from foam_bridge.solver import run_to_end
 
-__all__ = ["CHECK_DIR", "Confirmation", "confirm", "meets"]
+__all__ = ["CHECK_DIR", "Confirmation", "confirm", "meets", "step_turbulence_factor"]
 
 #: Directory of the check's scratch case, next to the episode case.
 CHECK_DIR = "confirm"
+#: A step factor this close under ``confirm_alpha_u`` counts as equal: float32(0.9) is 0.89999998, and
+#: a normalisation 1e-7 looser gains nothing.
+_FACTOR_TOLERANCE = 1e-6
 
 
 @dataclass(frozen=True)
@@ -78,24 +87,41 @@ def meets(cfg: FoamEnvConfig, residuals: dict[str, float], fields: Sequence[str]
     return bool(solved) and all(residuals[name] <= cfg.convergence[name] for name in solved)
 
 
-def _checked_fields(cfg: FoamEnvConfig, turbulence: Sequence[str] | None = None) -> tuple[str, ...]:
-    """The fields whose normalisation the agent moves: the velocity, and the turbulence fields
-    (``turbulence``, default ``cfg.turbulence_fields``) when they follow alpha_u or alpha_t is an
-    action. The others (p, turbulence at the case's factor) the solver's own test has met already;
+def step_turbulence_factor(cfg: FoamEnvConfig, alpha: Sequence[float]) -> float | None:
+    """The factor a step's action ``alpha`` relaxed the turbulence fields with when the agent sets it:
+    alpha_u when they follow it, alpha_t when it is an action; None when it is the case's or a fixed one."""
+    mode = cfg.k_omega_relaxation
+    if mode == FOLLOW_ALPHA_U:
+        return float(alpha[0])
+    return float(alpha[2]) if mode == K_OMEGA_ACTION else None
+
+
+def _checked_fields(cfg: FoamEnvConfig, turbulence: Sequence[str] | None = None,
+                    step_factor: float | None = None) -> tuple[str, ...]:
+    """The fields whose normalisation the agent lowered: the velocity, and the turbulence fields
+    (``turbulence``, default ``cfg.turbulence_fields``) when they follow alpha_u or alpha_t is an action
+    and the step relaxed them below ``confirm_alpha_u`` (``step_factor``, see
+    :func:`step_turbulence_factor`; None: not known, checked). The others (p, turbulence at the case's
+    factor or at one >= the check's) the solver's own test has met already, at least as strictly;
     re-reading them after a change of relaxation measures the change, not the run (on airFoil2D, plain
-    SIMPLE, p reads 5.7e-2 at alpha_u 0.9 from fields converged to 1e-6 at 0.7)."""
+    SIMPLE, p reads 5.7e-2 at alpha_u 0.9 from fields converged to 1e-6 at 0.7; on T3A, see above)."""
     if cfg.k_omega_relaxation not in (FOLLOW_ALPHA_U, K_OMEGA_ACTION):
+        return (cfg.velocity_field,)
+    check = cfg.confirm_alpha_u
+    if step_factor is not None and check is not None and step_factor >= check - _FACTOR_TOLERANCE:
         return (cfg.velocity_field,)
     return (cfg.velocity_field, *(cfg.turbulence_fields if turbulence is None else turbulence))
 
 
 def confirm(episode: Path, base: Path, cfg: FoamEnvConfig, openfoam: OpenFOAM, iteration: int,
             alpha_p: float, solver_residuals: dict[str, float], flat: bool = False,
-            turbulence: Sequence[str] | None = None) -> Confirmation:
+            turbulence: Sequence[str] | None = None, step_factor: float | None = None) -> Confirmation:
     """Check the fields the episode case wrote at ``iteration`` at alpha_u = ``cfg.confirm_alpha_u``
     (``flat``: the case's relaxationFactors use the old flat layout; ``turbulence``: the fields alpha_t
     relaxes when it is an action, see case.relaxation_text). When alpha_t is an action they are relaxed
-    at ``confirm_alpha_u`` too, whatever the step's alpha_t was; otherwise at the env's fixed factor."""
+    at ``confirm_alpha_u`` too, whatever the step's alpha_t was; otherwise at the env's fixed factor.
+    ``step_factor``: the step's own turbulence factor (:func:`step_turbulence_factor`), which decides
+    whether they are checked (:func:`_checked_fields`)."""
     assert cfg.confirm_alpha_u is not None
     started = time.monotonic()
     scratch = episode.parent / CHECK_DIR
@@ -116,6 +142,6 @@ def confirm(episode: Path, base: Path, cfg: FoamEnvConfig, openfoam: OpenFOAM, i
     first = parser.history[0] if parser.history else {}
     found = {name: field_residual(first, name) for name in cfg.convergence}
     residuals = {name: float(value) for name, value in found.items() if value is not None}
-    passed = not error and meets(cfg, residuals, _checked_fields(cfg, turbulence))
+    passed = not error and meets(cfg, residuals, _checked_fields(cfg, turbulence, step_factor))
     return Confirmation(iteration, passed, residuals, dict(solver_residuals),
                         time.monotonic() - started, error)

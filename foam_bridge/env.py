@@ -73,7 +73,7 @@ from foam_bridge.config import (
     failure_reward,
     work_root,
 )
-from foam_bridge.confirm import confirm, meets
+from foam_bridge.confirm import confirm, meets, step_turbulence_factor
 from foam_bridge.logparse import LogParser, field_residual
 from foam_bridge.openfoam import find_openfoam
 from foam_bridge.records import EpisodeRecord
@@ -362,7 +362,8 @@ class FoamCaseEnv:
             if outcome != "converged" and not at_boundary:
                 return outcome, cause, iterations
             check = confirm(self.case_dir, self.base, self.cfg, self.openfoam, iterations, float(alpha[1]),
-                            self._residuals(), self.case_info.flat_relaxation, self._turbulence)
+                            self._residuals(), self.case_info.flat_relaxation, self._turbulence,
+                            step_turbulence_factor(self.cfg, alpha))
             self._episode["confirmations"].append(check.record())
             if check.passed:
                 self._stop_solver()
