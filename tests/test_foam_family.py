@@ -71,8 +71,9 @@ def test_alpha_t_reaches_the_solver(tmp_path):
 def test_the_convergence_check_reads_k_and_omega_at_its_own_fixed_factor(tmp_path):
     """With alpha_t an action the agent moves the k/omega residuals the criterion reads, as alpha_u moves
     U's: the check relaxes k and omega at confirm_alpha_u, whatever the step's alpha_t, and checks them
-    when the step relaxed them below it (tests/test_foam_confirm.py). An episode at alpha_t 0.95 is checked as if k/omega were fixed at confirm_alpha_u (0.9), and a check
-    at another fixed factor reads other residuals (so the comparison could fail)."""
+    when the step relaxed them below it (tests/test_foam_confirm.py). An episode at alpha_t 0.95 is
+    checked as if k/omega were fixed at confirm_alpha_u (0.9), and a check at another fixed factor reads
+    other residuals (so the comparison could fail)."""
     cfg = _cfg(tmp_path / "three", relax_k_omega="action", confirm_alpha_u=0.9)
     with FoamCaseEnv(cfg) as env:
         record = _episode(env, (0.95, 0.875, 0.95))
