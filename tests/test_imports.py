@@ -121,8 +121,11 @@ def test_the_trained_policy_sits_below_evaluation_introspection_and_solve():
 def test_loading_and_acting_import_no_plotting(tmp_path):
     """jaxsimrl.load_policy and jaxsimrl.policy.load_policy, then one action of the shipped controller, in a
     fresh interpreter: matplotlib (most of a second, on every `jaxsimrl solve`) stays out."""
+    import json
     import subprocess
     import sys
+
+    from jaxsimrl.solve.controller import DEFAULT_CONTROLLER
 
     script = ("import sys, numpy as np, jaxsimrl, jaxsimrl.policy\n"
               "from jaxsimrl.solve.controller import DEFAULT_CONTROLLER\n"
@@ -132,4 +135,5 @@ def test_loading_and_acting_import_no_plotting(tmp_path):
               "print(sorted(name for name in sys.modules if name.split('.')[0] == 'matplotlib'))\n")
     out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300,
                          cwd=tmp_path, check=True).stdout.splitlines()
-    assert out == ["LoadedPolicy (2,)", "TrainedPolicy (2,)", "[]"]
+    actions = len(json.loads((DEFAULT_CONTROLLER / "provenance.json").read_text())["actions"])
+    assert out == [f"LoadedPolicy ({actions},)", f"TrainedPolicy ({actions},)", "[]"]

@@ -33,6 +33,8 @@ from jaxsimrl.solve.settings import solve_config
 from jaxsimrl.solve.watchdog import Watchdog
 
 TUTORIALS = Path("/usr/share/doc/openfoam-examples/examples/incompressible/simpleFoam")
+#: What the shipped controller says of itself (jaxsimrl/controllers/default/provenance.json).
+SHIPPED = json.loads((DEFAULT_CONTROLLER / "provenance.json").read_text())
 PYTHON = sys.executable
 pytestmark = OPENFOAM
 FOAM_ENV = {**os.environ, "WM_PROJECT_DIR": os.environ.get("WM_PROJECT_DIR", "/usr/share/openfoam")}
@@ -124,11 +126,11 @@ def test_solve_pitz_daily_gives_a_normal_converged_case(tmp_path: Path) -> None:
     result = data["result"]
     assert result["fields_from"] == "the controller" and result["time_directory"] == str(result["iterations"])
     assert data["confirmations"][-1]["passed"]
-    assert data["controller"]["default"] and data["controller"]["recorded"]["checkpoint"] == 34
+    assert data["controller"]["default"] and data["controller"]["recorded"] == SHIPPED
     criterion = set(data["settings"]["criterion"])
     assert set(data["residuals"]["controlled"]) == criterion == {"U", "p", "k", "epsilon"}
     assert len(data["residuals"]["controlled"]["U"]) == result["iterations"]
-    assert data["steps"] and all(len(step["action"]) == 2 for step in data["steps"])
+    assert data["steps"] and all(len(step["action"]) == len(SHIPPED["actions"]) for step in data["steps"])
     assert (out / "solve.png").read_bytes()[:4] == b"\x89PNG"
     own = data["compare"]["own"]
     assert own["converged"]
@@ -191,7 +193,7 @@ def test_solve_a_coarse_step_case_with_a_loaded_policy(tmp_path: Path) -> None:
     assert _tree_hash(case) == before and report.converged
     data = json.loads((out / "solve.json").read_text())
     assert data["result"]["fields_from"] == "the controller" and not data["fallback"]
-    assert data["controller"]["checkpoint"] == 34 and not data["controller"]["default"]
+    assert data["controller"]["checkpoint"] == SHIPPED["checkpoint"] and not data["controller"]["default"]
     constant = data["compare"]["constant"]
     assert constant["converged"] and (out / "compare" / "constant" / "log.simpleFoam").is_file()
     assert "constant factors" in (out / "compare" / "constant" / "system" / "fvSolution").read_text()
