@@ -89,11 +89,12 @@ def meets(cfg: FoamEnvConfig, residuals: dict[str, float], fields: Sequence[str]
 
 def step_turbulence_factor(cfg: FoamEnvConfig, alpha: Sequence[float]) -> float | None:
     """The factor a step's action ``alpha`` relaxed the turbulence fields with when the agent sets it:
-    alpha_u when they follow it, alpha_t when it is an action; None when it is the case's or a fixed one."""
-    mode = cfg.k_omega_relaxation
-    if mode == FOLLOW_ALPHA_U:
-        return float(alpha[0])
-    return float(alpha[2]) if mode == K_OMEGA_ACTION else None
+    alpha_u when they follow it, alpha_t when it is an action (episode_case.turbulence_factor); None
+    when it is the case's or a fixed one."""
+    if cfg.k_omega_relaxation not in (FOLLOW_ALPHA_U, K_OMEGA_ACTION):
+        return None
+    factor = episode_case.turbulence_factor(cfg, alpha[0], alpha[2] if len(alpha) > 2 else None)
+    return None if factor is None else float(factor)
 
 
 def _checked_fields(cfg: FoamEnvConfig, turbulence: Sequence[str] | None = None,

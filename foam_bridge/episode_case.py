@@ -197,13 +197,19 @@ def relaxation_text(cfg: FoamEnvConfig, alpha_u: float, alpha_p: float, flat: bo
     """
     fields = {cfg.pressure_field: float(alpha_p)}
     equations = {cfg.velocity_field: float(alpha_u)}
-    mode = cfg.k_omega_relaxation
-    factor = float(alpha_u) if mode == FOLLOW_ALPHA_U else alpha_t if mode == K_OMEGA_ACTION else mode
+    factor = turbulence_factor(cfg, alpha_u, alpha_t)
     if factor is not None:
         names = cfg.turbulence_fields if turbulence is None else turbulence
         equations.update({name: float(factor) for name in names})
     factors = {**fields, **equations} if flat else {"fields": fields, "equations": equations}
     return FoamFile.dumps({"relaxationFactors": factors}, ensure_header=False) + b"\n"
+
+
+def turbulence_factor(cfg: FoamEnvConfig, alpha_u: float, alpha_t: float | None = None) -> float | None:
+    """The factor one action gives the turbulence fields (see :func:`relaxation_text`): alpha_u for
+    FOLLOW_ALPHA_U, ``alpha_t`` for K_OMEGA_ACTION, the fixed factor, or None (the case's own)."""
+    mode = cfg.k_omega_relaxation
+    return float(alpha_u) if mode == FOLLOW_ALPHA_U else alpha_t if mode == K_OMEGA_ACTION else mode
 
 
 def turbulence_fields(cfg: FoamEnvConfig, info: CaseInfo) -> tuple[str, ...]:
