@@ -150,6 +150,8 @@ class AsyncFoamEnv(FoamBatchCore):
         for env_id, action in zip(ids, actions, strict=True):
             if self._tallies[env_id].reset_failure:  # no episode to step: retry its reset
                 requests.append(self._reset_request(env_id, ("retry", action)))
+            elif (lost := self._stranded(env_id)) is not None:  # it ends as if the step had been sent
+                requests += self._stepped(lost, action)
             else:
                 requests.append(self._step_request(env_id, action))
         self.backend.submit(requests)

@@ -186,6 +186,7 @@ class FoamBatchCore(EpisodeReplay):
         return results, failures
 
     def _start_tally(self, env_id: int, seed: int, obs: Any, info: dict[str, Any]) -> tuple[np.ndarray, dict]:
+        self.backend.stranded.pop(env_id, None)  # a new episode on the worker it lives on now
         obs = np.asarray(obs, np.float32)
         velocity = float(info.get("inlet_velocity", np.nan))
         height = info.get("step_height")
@@ -194,6 +195,13 @@ class FoamBatchCore(EpisodeReplay):
                                        residuals=dict(info.get("residuals", {})),
                                        node=self.backend.node_of(env_id))
         return obs, info
+
+    def _stranded(self, env_id: int) -> Reply | None:
+        """The reply a step of ``env_id`` gets when its episode died with its worker while the env had
+        no request there (Backend.stranded): the worker's own, without sending the step to a fresh worker
+        that has no episode to step."""
+        cause = self.backend.stranded.pop(env_id, None)
+        return None if cause is None else Reply(env_id, False, error=cause, worker_died=True)
 
     def _step_result(self, reply: Reply, action: np.ndarray) -> tuple:
         tally = self._tallies[reply.env_id]
@@ -304,7 +312,10 @@ class BatchedFoamEnv(FoamBatchCore):
             raise ValueError(f"actions: expected finite ({names}), got {actions.tolist()}")
         restarted, unstarted = self._retry_resets()
         runnable = [i for i in range(self.num_envs) if i not in unstarted and i not in restarted]
-        replies = self.backend.run([Request(i, "step", {"action": actions[i]}) for i in runnable])
+        lost = {i: reply for i in runnable if (reply := self._stranded(i)) is not None}
+        sent = [i for i in runnable if i not in lost]
+        replies = self.backend.run([Request(i, "step", {"action": actions[i]}) for i in sent])
+        replies += lost.values()
         results = {reply.env_id: self._step_result(reply, actions[reply.env_id]) for reply in replies}
         for i, cause in unstarted.items():  # no episode to step: a failed one of 0 iterations
             self._tallies[i] = _Tally(self._tallies[i].obs)

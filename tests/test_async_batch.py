@@ -186,6 +186,71 @@ def test_the_caller_s_errors_are_one_line_value_errors():
         assert len(env.recv()[0]) == 1
 
 
+
+# ---- an episode that went with its worker while its result waited ----------------------------------
+class DiesOnReset(StandIn):
+    """Env ``env_id`` ends in one step and kills its worker at its second reset there (an auto-reset
+    that only it does in lock-step), once per work directory; the other envs run 4 steps."""
+
+    def __init__(self, env_id: int) -> None:
+        super().__init__(Profile(iterations=(400,), seconds_per_iteration=(1e-4,), reset_s=0.002))
+        self.env_id = env_id
+
+    def __call__(self, cfg: FoamEnvConfig, work_dir: Path, env_id: int) -> StandInEnv:
+        if env_id != self.env_id:
+            return super().__call__(cfg, work_dir, env_id)
+        short = Profile(iterations=(100,), seconds_per_iteration=(1e-4,), reset_s=0.002)
+        env = StandInEnv(cfg, short, env_id)
+        resets, reset = [0], env.reset
+
+        def dying_reset(*args, **kwargs):
+            resets[0] += 1
+            if resets[0] == 2 and not (work_dir / "died").exists():
+                (work_dir / "died").touch()
+                os._exit(1)
+            return reset(*args, **kwargs)
+
+        env.reset = dying_reset
+        return env
+
+
+def _ends(ids: np.ndarray, infos: dict) -> list[tuple[int, str, str]]:
+    return [(i, e["outcome"], e["cause"]) for i, e in _episodes(infos, ids)]
+
+
+def test_async_an_episode_lost_with_its_worker_while_its_result_waited_ends_with_the_worker_s_cause():
+    # 5 envs on 2 workers, 2 per call: env 4 (worker 0) is still waiting when worker 0 dies under envs
+    # 0 and 2; its next step must not go to the fresh worker, which has no episode of it
+    slow = Profile(iterations=(400,), seconds_per_iteration=(2e-3,), reset_s=0.002)
+    with AsyncFoamEnv(CFG, num_envs=5, batch_size=2, pool=2, seed=0, make_env=StandIn(slow)) as env:
+        env.async_reset()
+        victim = env.worker_pids()[0]
+        for _ in range(2):
+            ids, *_ = env.recv()
+            env.send(np.full((2, 2), 0.5), ids)
+        os.kill(victim, signal.SIGKILL)
+        ends = []
+        while not any(i == 4 and outcome == "converged" for i, outcome, _ in ends):
+            ids, _, _, _, _, infos = env.recv()
+            ends += _ends(ids, infos)
+            env.send(np.full((2, 2), 0.5), ids)
+    crashed = sorted((i, cause) for i, outcome, cause in ends if outcome == "crashed")
+    assert crashed == [(0, "worker died"), (2, "worker died"), (4, "worker died")], ends
+
+
+def test_lock_step_an_episode_lost_with_its_worker_during_another_env_s_reset_ends_with_its_cause():
+    # env 1's auto-reset kills worker 1 and is retried on its replacement; env 3, on the same worker and
+    # in mid-episode, had no request in that reset: its episode died with the worker all the same
+    with BatchedFoamEnv(CFG, num_envs=4, pool=2, seed=0, make_env=DiesOnReset(env_id=1)) as env:
+        env.reset()
+        ends = []
+        for _ in range(5):
+            *_, infos = env.step(np.full((4, 2), 0.5))
+            ends += _ends(np.arange(4), infos)
+    assert [(i, cause) for i, outcome, cause in ends if outcome == "crashed"] == [(3, "worker died")], ends
+    assert [i for i, outcome, _ in ends if outcome == "converged"].count(1) >= 3  # env 1 goes on
+
+
 # ---- snapshot and replay (a resume) -------------------------------------------------------------------
 #: 5-10 ms steps, 30 ms resets: at most moments some env has a background reset in flight.
 SLOW_RESETS = Profile(iterations=(150, 220, 400), seconds_per_iteration=(1e-4, 5e-5, 1e-4), reset_s=0.03)

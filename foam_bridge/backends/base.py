@@ -8,10 +8,13 @@ once, so workers compute in parallel, then gathers the replies in request order.
 (or does not answer within the batch deadline, in which case it is killed) answers every request of
 the batch with ``Reply(ok=False, worker_died=True, error=cause)`` (cause "worker died", or for a Ray
 actor whose node died "node lost: ...") and is replaced by a fresh one; its envs are rebuilt on their
-next request. The other workers are not touched. A replacement that cannot be started for lack of
-room (``NoRoomError``: a cluster that lost a node) loses the worker for good: its envs move to the
-surviving workers (the fewest envs first), the pool goes on smaller, and the loss is logged (one
-warning line) and kept in ``lost``. ``run`` does not raise for a worker fault, except
+next request. The other workers are not touched. An env of the dead worker that had no request in
+the answered batches (its result was waiting with the caller) lost its running episode all the same:
+it is kept in ``stranded`` (env -> cause), so that the batch ends that episode with the worker's
+cause at its next step instead of stepping a fresh env that has none. A replacement that cannot be
+started for lack of room (``NoRoomError``: a cluster that lost a node) loses the worker for good: its
+envs move to the surviving workers (the fewest envs first), the pool goes on smaller, and the loss is
+logged (one warning line) and kept in ``lost``. ``run`` does not raise for a worker fault, except
 ``PoolLostError`` when no worker is left at all; a replacement that fails otherwise counts as a dead
 worker again on the next batch.
 
@@ -103,6 +106,8 @@ class Backend(ABC):
         self._head_since: dict[int, float] = {}
         #: One line per worker lost for good (its envs moved to the others).
         self.lost: list[str] = []
+        #: env -> why its episode went with a dead worker that had no request of it (module docstring).
+        self.stranded: dict[int, str] = {}
 
     def worker_of(self, env_id: int) -> int:
         """Index of the worker that hosts env ``env_id``."""
@@ -134,6 +139,7 @@ class Backend(ABC):
             answers = self._receive(worker, batch, sent[worker], _batch_deadline_s(self.cfg, batch))
             if answers is None:
                 cause = self._death_cause(worker)
+                self._strand(worker, batch, cause)
                 self._recover(worker, cause)
                 answers = [Reply(r.env_id, False, error=cause, worker_died=True, seq=r.seq) for r in batch]
             for position, answer in zip(positions, answers, strict=True):
@@ -185,6 +191,7 @@ class Backend(ABC):
         cause = self._death_cause(worker)
         lost = [request for batch, _ in queue for request in batch]
         queue.clear()
+        self._strand(worker, lost, cause)
         self._recover(worker, cause)
         return [Reply(r.env_id, False, error=cause, worker_died=True, seq=r.seq) for r in lost]
 
@@ -192,6 +199,13 @@ class Backend(ABC):
         """Which of ``workers`` have an answer (or died) for their oldest submitted batch, waiting up
         to ``timeout_s`` for one. The default waits on none: each is then read with its deadline."""
         return workers
+
+    def _strand(self, worker: int, answered: list[Request], cause: str) -> None:
+        """Mark the dead ``worker``'s envs that get no reply of it: their episodes died with it."""
+        replied = {request.env_id for request in answered}
+        for env_id in self.envs_of(worker):
+            if env_id not in replied:
+                self.stranded[env_id] = cause
 
     def _recover(self, worker: int, cause: str) -> None:
         """Replace a dead worker; without room for one, lose it and move its envs to the others."""
