@@ -4,7 +4,8 @@ machine would be (its raylet and everything under it, no graceful drain) while a
 
 Losing capacity must never hang: the lost node's episodes end with cause "node lost: ...", a
 replacement goes to a node with room (one that joined later included), without room the pool goes on
-with fewer workers, and without any worker the step raises PoolLostError. Unreachable or too small
+with fewer workers, and without any worker the step raises PoolLostError; the same holds for the
+asynchronous batch (foam_bridge.async_batch): each test runs on both batches. Unreachable or too small
 clusters are one-line errors at start. train-foam (its own process, the driver) reaches its episode
 target with a node killed mid-update and resumes onto a node that joined later; with no node left it
 stops in one line saying how to resume. Every wait here is bounded (``bounded``, ``wait_until``,
@@ -30,6 +31,7 @@ import numpy as np
 import pytest
 from foam_marks import needs_openfoam
 
+from foam_bridge.async_batch import AsyncFoamEnv
 from foam_bridge.batched import BatchedFoamEnv
 from foam_bridge.config import FoamEnvConfig
 from foam_bridge.errors import ClusterError, PoolLostError
@@ -45,6 +47,8 @@ STEP_BOUND_S = 120.0
 #: A train-foam driver's case: COARSE's mesh and cap (episodes of at most 3 steps), 4 steps per env per
 #: update. Its solvers stay alive between steps, so a kill still finds them mid-update.
 DRIVER = ["--mesh-scale", "0.4", "--max-iterations", "300", "--steps-per-update", "8"]
+#: The driver's batch flags: lock-step, or asynchronous with 2 envs per worker (``pool`` per learner step).
+DRIVER_BATCH = {"lock-step": lambda pool: [], "async": lambda pool: ["--async-envs", str(2 * pool)]}
 
 
 def bounded(seconds: float, fn: Callable[..., Any], *args: Any) -> Any:
@@ -170,26 +174,50 @@ def _alive(pid: int) -> bool:
     return bool(fields) and fields[0] != "Z"  # a zombie has exited
 
 
-def step(env: BatchedFoamEnv) -> tuple:
-    return bounded(STEP_BOUND_S, env.step, np.tile(ACTION, (env.num_envs, 1)))
+#: The batches under test: lock-step (BatchedFoamEnv) and asynchronous (AsyncFoamEnv, EnvPool-style).
+BATCHES = ["lock-step", "async"]
+Batch = BatchedFoamEnv | AsyncFoamEnv
 
 
-def steps_until_a_loss(env: BatchedFoamEnv, seconds: float = 60.0) -> list[tuple[int, str, str, str]]:
+def make_batch(kind: str, num_envs: int, pool: int, work_dir: Path) -> Batch:
+    """A batch of ``num_envs`` envs on ``pool`` Ray actors; asynchronous: 2 envs per worker, ``pool``
+    per call (foam_bridge.async_batch's advice is 3; 2 keeps the test short)."""
+    if kind == "lock-step":
+        return BatchedFoamEnv(COARSE, num_envs, "ray", pool, None, work_dir, 5)
+    return AsyncFoamEnv(COARSE, 2 * num_envs, pool, backend="ray", pool=pool, work_dir=work_dir, seed=5)
+
+
+def start(env: Batch) -> None:
+    env.reset() if isinstance(env, BatchedFoamEnv) else env.async_reset()
+
+
+def step(env: Batch) -> list[tuple[int, str, str, str]]:
+    """One round of the batch (lock-step: a step of every env; asynchronous: a recv and a send of the
+    envs it returned) with ACTION; returns the ``ended`` records of the episodes that ended in it."""
+    if isinstance(env, BatchedFoamEnv):
+        infos = bounded(STEP_BOUND_S, env.step, np.tile(ACTION, (env.num_envs, 1)))[4]
+        return ended(infos, np.arange(env.num_envs))
+    ids, *_, infos = bounded(STEP_BOUND_S, env.recv)
+    env.send(np.tile(ACTION, (len(ids), 1)), ids)
+    return ended(infos, ids)
+
+
+def steps_until_a_loss(env: Batch, seconds: float = 60.0) -> list[tuple[int, str, str, str]]:
     """Step until an episode ends with "node lost" (the kill may land mid-step or between steps; a step
     is a second or two here); returns the ended episodes' ``ended`` records."""
     records: list[tuple[int, str, str, str]] = []
     deadline = time.monotonic() + seconds
     while not any(r[2].startswith("node lost") for r in records) and time.monotonic() < deadline:
-        records += ended(step(env)[4])
+        records += step(env)
     return records
 
 
-def ended(infos: dict[str, Any]) -> list[tuple[int, str, str, str]]:
-    """(env, outcome, cause, node) of each episode that ended in a step."""
+def ended(infos: dict[str, Any], ids: np.ndarray) -> list[tuple[int, str, str, str]]:
+    """(env, outcome, cause, node) of each episode that ended in a step whose rows are envs ``ids``."""
     if "final_info" not in infos:
         return []
     final = infos["final_info"]
-    return [(int(i), str(final["outcome"][i]), str(final["cause"][i]), str(final["episode"]["node"][i]))
+    return [(int(ids[i]), str(final["outcome"][i]), str(final["cause"][i]), str(final["episode"]["node"][i]))
             for i in np.flatnonzero(infos["_final_info"])]
 
 
@@ -199,25 +227,34 @@ def label_of(node: Any) -> str:
 
 
 @needs_openfoam
-def test_a_lost_node_ends_its_episodes_and_the_batch_goes_on_with_the_survivor(tmp_path):
+@pytest.mark.parametrize("batch", BATCHES)
+def test_a_lost_node_ends_its_episodes_and_the_batch_goes_on_with_the_survivor(tmp_path, batch):
     with cluster_of(1, 1) as (cluster, (doomed,)):
-        env = bounded(STEP_BOUND_S, BatchedFoamEnv, COARSE, 2, "ray", 2, None, tmp_path, 5)
+        env = bounded(STEP_BOUND_S, make_batch, batch, 2, 2, tmp_path)
         try:
-            bounded(STEP_BOUND_S, env.reset)
-            nodes = [env.backend.node_of(i) for i in range(2)]
+            bounded(STEP_BOUND_S, start, env)
+            nodes = [env.backend.node_of(i) for i in range(env.num_envs)]
             lost = [i for i, node in enumerate(nodes) if node.endswith(label_of(doomed))]
-            assert len(lost) == 1 and len(set(nodes)) == 2, nodes  # one actor on each node
-            survivor = nodes[1 - lost[0]]
+            assert 2 * len(lost) == env.num_envs and len(set(nodes)) == 2, nodes  # an actor on each node
+            survivor = next(node for node in nodes if not node.endswith(label_of(doomed)))
             seen = kill_node_soon(cluster, doomed, 1.0, tmp_path)
             records = steps_until_a_loss(env)
-            for _ in range(4):  # long enough for the moved env to end an episode on the survivor
-                records += ended(step(env)[4])
-            loss = [r for r in records if r[2].startswith("node lost")]
-            assert loss == [(lost[0], "crashed", f"node lost: {nodes[lost[0]]}", nodes[lost[0]])], records
+
+            def moved_and_ended() -> bool:  # every env of the lost node ended an episode on the survivor
+                losses = [(at, r[0]) for at, r in enumerate(records) if r[2].startswith("node lost")]
+                return len(losses) == len(lost) and all(
+                    any(r[0] == i and r[1] != "crashed" and r[3] == survivor for r in records[at:])
+                    for at, i in losses)
+
+            deadline = time.monotonic() + 120  # episodes of 2-3 steps of a second or two
+            while not moved_and_ended() and time.monotonic() < deadline:
+                records += step(env)
+            loss = sorted(r for r in records if r[2].startswith("node lost"))
+            # its envs' episodes ended once each, those in flight and (asynchronous) any waiting as well
+            assert loss == [(i, "crashed", f"node lost: {nodes[i]}", nodes[i]) for i in lost], records
+            assert moved_and_ended(), records
             assert env.backend.workers() == 1 and len(env.backend.lost) == 1
-            assert [env.backend.node_of(i) for i in range(2)] == [survivor, survivor]
-            after = records[records.index(loss[0]) + 1:]
-            assert any(r[0] == lost[0] and r[1] != "crashed" and r[3] == survivor for r in after), records
+            assert [env.backend.node_of(i) for i in range(env.num_envs)] == [survivor] * env.num_envs
             assert seen["solvers"] and not wait_gone(seen["solvers"])  # the lost node's solver died too
         finally:
             bounded(STEP_BOUND_S, env.close)
@@ -225,20 +262,22 @@ def test_a_lost_node_ends_its_episodes_and_the_batch_goes_on_with_the_survivor(t
 
 
 @needs_openfoam
-def test_a_node_that_joined_later_takes_the_replacement_and_no_node_left_is_one_error(tmp_path):
+@pytest.mark.parametrize("batch", BATCHES)
+def test_a_node_that_joined_later_takes_the_replacement_and_no_node_left_is_one_error(tmp_path, batch):
     with cluster_of(0, 1) as (cluster, (first,)):
         with pytest.raises(ClusterError, match="has 1 CPUs; a pool of 2 workers needs 2"):
-            bounded(30, BatchedFoamEnv, COARSE, 2, "ray", 2, None, tmp_path / "too_big", 5)
-        env = bounded(STEP_BOUND_S, BatchedFoamEnv, COARSE, 1, "ray", 1, None, tmp_path, 5)
+            bounded(30, make_batch, batch, 2, 2, tmp_path / "too_big")
+        env = bounded(STEP_BOUND_S, make_batch, batch, 1, 1, tmp_path)
         try:
-            bounded(STEP_BOUND_S, env.reset)
+            bounded(STEP_BOUND_S, start, env)
             assert env.backend.node_of(0).endswith(label_of(first))
             later = add_node(cluster, 1)
             kill_node_soon(cluster, first, 1.0, tmp_path)
             old = env.backend.node_of(0)
             records = steps_until_a_loss(env)
             loss = [r for r in records if r[2].startswith("node lost")]
-            assert loss == [(0, "crashed", f"node lost: {old}", old)]
+            assert loss and all(r[1:] == ("crashed", f"node lost: {old}", old) for r in loss), records
+            assert len(loss) == len({r[0] for r in loss})  # one loss per env at most
             assert env.backend.node_of(0).endswith(label_of(later)) and env.backend.workers() == 1
             assert env.backend.lost == []  # replaced, not lost
             kill_node_soon(cluster, later, 0.5, tmp_path)
@@ -306,7 +345,7 @@ def test_the_local_pool_records_this_host_as_the_node(tmp_path):
         env.reset()
         records: list[tuple[int, str, str, str]] = []
         while not records:
-            records = ended(step(env)[4])
+            records = step(env)
     assert records[0][3] == socket.gethostname()
 
 
@@ -332,7 +371,8 @@ def wait_until(condition: Callable[[], bool], process: subprocess.Popen, what: s
 
 
 @needs_openfoam
-def test_train_foam_goes_on_after_a_node_loss_and_a_killed_driver_loses_no_episode(tmp_path):
+@pytest.mark.parametrize("batch", BATCHES)
+def test_train_foam_goes_on_after_a_node_loss_and_a_killed_driver_loses_no_episode(tmp_path, batch):
     """One cluster, three drivers (cheaper than a cluster per property):
 
     1. a node killed mid-update: the run goes on with the survivor, reaches its target and says so;
@@ -340,7 +380,10 @@ def test_train_foam_goes_on_after_a_node_loss_and_a_killed_driver_loses_no_episo
        checkpoint (taken after the loss), then the driver is killed with SIGKILL mid-way through the
        update after its first checkpoint: no solver is left;
     3. ``--resume`` again replays that checkpoint's episodes in flight, loses no recorded episode, writes
-       no duplicate or torn row, uses the node that joined, and reaches the target."""
+       no duplicate or torn row, uses the node that joined, and reaches the target.
+
+    Asynchronous (2 envs per worker): the lost node's envs lose one or two episodes (one may be between
+    episodes), and a resume replays each env's state (4 of them), as tests/test_async_trainer.py's."""
     from foam_bridge.backends.reaper import processes_under
     from jaxsimrl.envs.foam_episodes import EpisodeLog
 
@@ -348,8 +391,9 @@ def test_train_foam_goes_on_after_a_node_loss_and_a_killed_driver_loses_no_episo
     tmp.mkdir()
     with ray_cluster(1, 1) as (cluster, (doomed,), processes):
         common = ["--backend", "ray", "--ray-address", cluster.address, "--pool", "2"]
-        process = _train_foam(processes, tmp, *common, *DRIVER, "--episodes", "6", "--seed", "3",
-                              "--out", str(run))
+        process = _train_foam(processes, tmp, *common, *DRIVER, *DRIVER_BATCH[batch](2), "--episodes", "6",
+                              "--seed", "3", "--out", str(run))
+        envs = 2 if batch == "lock-step" else 4
         # both envs have a solver: kill a node mid-update
         wait_until(lambda: len(solver_pids(tmp)) >= 2, process, "two solvers running")
         time.sleep(1.0)
@@ -359,7 +403,8 @@ def test_train_foam_goes_on_after_a_node_loss_and_a_killed_driver_loses_no_episo
         assert "Traceback" not in err and " lost (node lost: " in err  # the warning line
         rows = EpisodeLog.load(run / "episodes.csv", 10**9).rows
         lost = [row for row in rows if row["cause"].startswith("node lost")]
-        assert len(rows) >= 6 and len(lost) == 1 and lost[0]["node"].endswith(label_of(doomed)), rows
+        assert len(rows) >= 6 and 1 <= len(lost) <= envs // 2, rows  # its envs' running episodes
+        assert all(row["node"].endswith(label_of(doomed)) for row in lost), rows
         assert len({row["node"] for row in rows}) == 2 and all(row["node"] for row in rows)
         summary = json.loads((run / "summary.json").read_text())
         assert summary["complete"] and len(summary["workers_lost"]) == 1
@@ -377,22 +422,24 @@ def test_train_foam_goes_on_after_a_node_loss_and_a_killed_driver_loses_no_episo
         solvers = solver_pids(tmp)
         os.kill(resumed.pid, signal.SIGKILL)
         _, err = resumed.communicate(timeout=60)
-        assert f"resumed at update {first} with its 2 episodes in flight replayed" in err, err
+        assert f"resumed at update {first} with its {envs} episodes in flight replayed" in err, err
         # the dead driver's actors are killed by Ray, their solvers die with them (PDEATHSIG)
         assert solvers and not wait_gone(solvers, 60), f"solvers outlived the driver: {solver_pids(tmp)}"
         assert not wait_gone(processes_under(tmp), 30)
-        _check_resumed_after_a_kill(processes, tmp, run, target, common, joined)
+        _check_resumed_after_a_kill(processes, tmp, run, target, common, joined, envs)
 
 
 @needs_openfoam
-def test_train_foam_with_no_node_left_stops_in_one_line_saying_how_to_resume(tmp_path):
+@pytest.mark.parametrize("batch", BATCHES)
+def test_train_foam_with_no_node_left_stops_in_one_line_saying_how_to_resume(tmp_path, batch):
     from foam_bridge.backends.reaper import processes_under
 
     run, tmp = tmp_path / "run", tmp_path / "tmp"
     tmp.mkdir()
     with ray_cluster(0, 1) as (cluster, (only,), processes):  # the head runs no worker
         process = _train_foam(processes, tmp, "--backend", "ray", "--ray-address", cluster.address,
-                              "--pool", "1", *DRIVER, "--episodes", "1000", "--out", str(run))
+                              "--pool", "1", *DRIVER, *DRIVER_BATCH[batch](1), "--episodes", "1000",
+                              "--out", str(run))
         wait_until(lambda: (run / "checkpoints" / "1").is_dir() and bool(solver_pids(tmp)), process,
                    "a first checkpoint and a solver running")
         kill_node(cluster, only)
@@ -412,7 +459,7 @@ def _checkpoints(run: Path) -> list[int]:
 
 
 def _check_resumed_after_a_kill(processes: list[subprocess.Popen], tmp: Path, run: Path, target: int,
-                                common: list[str], joined: Any) -> None:
+                                common: list[str], joined: Any, envs: int) -> None:
     """Step 3 of the test above: resume the killed run and check that nothing recorded was lost."""
     import csv
 
@@ -430,8 +477,8 @@ def _check_resumed_after_a_kill(processes: list[subprocess.Popen], tmp: Path, ru
     resumed = _train_foam(processes, tmp, "--resume", str(run), "--episodes", str(target), *common)
     out, err = resumed.communicate(timeout=600)
     assert resumed.returncode == 0, err
-    assert "Traceback" not in err and f"resumed at update {done} with its 2 episodes in flight replayed" \
-        in err, err
+    assert "Traceback" not in err, err
+    assert f"resumed at update {done} with its {envs} episodes in flight replayed" in err, err
     rows, metrics = _check_records(run)  # indices in order, each update's metrics row exactly once
     assert len(rows) >= target and metrics[-1]["update"] == _checkpoints(run)[-1]
     keys = [(row["env"], row["seed"], row["update"]) for row in rows]
@@ -443,7 +490,10 @@ def _check_resumed_after_a_kill(processes: list[subprocess.Popen], tmp: Path, ru
     same = ("index", "env", "update", "seed", "steps", "iterations", "outcome", "cause", "actions", "node")
     assert [[r[k] for k in same] for r in rows[:len(before)]] == [[r[k] for k in same] for r in before]
     # each episode in flight at the checkpoint was replayed and finished: its env's next row
-    for env_id, entry in enumerate(in_flight):
+    entries = in_flight["envs"] if isinstance(in_flight, dict) else in_flight  # asynchronous: a dict
+    for env_id, entry in enumerate(entries):
+        if not entry["running"]:  # asynchronous: between episodes, a reset in flight
+            continue
         nxt = next(r for r in rows if r["env"] == env_id and r["update"] > done)
         assert nxt["seed"] == entry["seed"], (env_id, nxt, entry)
         replayed = np.reshape(nxt["actions"][:len(entry["actions"])], (-1, 2))  # csv keeps 6 digits
