@@ -307,14 +307,22 @@ def _the_retried_reset_is_a_non_transition(env: BatchedFoamEnv, stale: np.ndarra
 
 DRIVER = """
 import json, sys
+from foam_bridge.async_batch import AsyncFoamEnv
 from foam_bridge.batched import BatchedFoamEnv
 from foam_bridge.config import FoamEnvConfig
 
 if __name__ == "__main__":
     cfg = FoamEnvConfig(mesh_scale=0.4, interval=10, max_iterations=300, step_timeout_s=60.0)
-    env = BatchedFoamEnv(cfg, 2, pool=2, work_dir=sys.argv[1], seed=0)
-    env.reset()
-    env.step([[0.9, 0.5]] * 2)  # both solvers now wait at their pause after iteration 10
+    if sys.argv[2] == "lock-step":
+        env = BatchedFoamEnv(cfg, 2, pool=2, work_dir=sys.argv[1], seed=0)
+        env.reset()
+        env.step([[0.9, 0.5]] * 2)  # both solvers now wait at their pause after iteration 10
+    else:  # the asynchronous batch: both envs sent a step, both results back
+        env = AsyncFoamEnv(cfg, 2, 2, pool=2, work_dir=sys.argv[1], seed=0)
+        env.async_reset()
+        ids, *_ = env.recv()
+        env.send([[0.9, 0.5]] * 2, ids)
+        env.recv()
     print(json.dumps(env.worker_pids()), flush=True)
     sys.stdin.read()
 """
@@ -333,12 +341,13 @@ def _solvers_under(path: Path) -> list[int]:
 
 
 @needs_openfoam
+@pytest.mark.parametrize("batch", ["lock-step", "async"])
 @pytest.mark.parametrize("victims", [("worker",), ("driver",), ("driver", "workers")])
-def test_kill_9_leaves_no_solver_behind(tmp_path, victims):
+def test_kill_9_leaves_no_solver_behind(tmp_path, victims, batch):
     script = tmp_path / "driver.py"
     script.write_text(DRIVER)
     work = tmp_path / "work"
-    driver = subprocess.Popen([sys.executable, str(script), str(work)], stdin=subprocess.PIPE,
+    driver = subprocess.Popen([sys.executable, str(script), str(work), batch], stdin=subprocess.PIPE,
                               stdout=subprocess.PIPE, text=True,
                               env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)})
     try:
