@@ -186,7 +186,6 @@ def test_the_caller_s_errors_are_one_line_value_errors():
         assert len(env.recv()[0]) == 1
 
 
-
 # ---- an episode that went with its worker while its result waited ----------------------------------
 class DiesOnReset(StandIn):
     """Env ``env_id`` ends in one step and kills its worker at its second reset there (an auto-reset

@@ -138,10 +138,7 @@ class Backend(ABC):
             batch = [requests[p] for p in positions]
             answers = self._receive(worker, batch, sent[worker], _batch_deadline_s(self.cfg, batch))
             if answers is None:
-                cause = self._death_cause(worker)
-                self._strand(worker, batch, cause)
-                self._recover(worker, cause)
-                answers = [Reply(r.env_id, False, error=cause, worker_died=True, seq=r.seq) for r in batch]
+                answers = self._died(worker, batch)
             for position, answer in zip(positions, answers, strict=True):
                 replies[position] = answer
         return replies  # type: ignore[return-value]
@@ -188,24 +185,25 @@ class Backend(ABC):
             queue.popleft()
             self._head_since[worker] = time.monotonic()
             return answers
-        cause = self._death_cause(worker)
         lost = [request for batch, _ in queue for request in batch]
         queue.clear()
-        self._strand(worker, lost, cause)
-        self._recover(worker, cause)
-        return [Reply(r.env_id, False, error=cause, worker_died=True, seq=r.seq) for r in lost]
+        return self._died(worker, lost)
 
     def _wait_ready(self, workers: list[int], timeout_s: float) -> list[int]:
         """Which of ``workers`` have an answer (or died) for their oldest submitted batch, waiting up
         to ``timeout_s`` for one. The default waits on none: each is then read with its deadline."""
         return workers
 
-    def _strand(self, worker: int, answered: list[Request], cause: str) -> None:
-        """Mark the dead ``worker``'s envs that get no reply of it: their episodes died with it."""
-        replied = {request.env_id for request in answered}
+    def _died(self, worker: int, unanswered: list[Request]) -> list[Reply]:
+        """``worker`` died (or hung) with ``unanswered`` in its hands: mark its other envs stranded (their
+        episodes died with it too), replace or lose it, and answer each request with the cause."""
+        cause = self._death_cause(worker)
+        answered = {request.env_id for request in unanswered}
         for env_id in self.envs_of(worker):
-            if env_id not in replied:
+            if env_id not in answered:
                 self.stranded[env_id] = cause
+        self._recover(worker, cause)
+        return [Reply(r.env_id, False, error=cause, worker_died=True, seq=r.seq) for r in unanswered]
 
     def _recover(self, worker: int, cause: str) -> None:
         """Replace a dead worker; without room for one, lose it and move its envs to the others."""
