@@ -132,6 +132,29 @@ def test_csv_round_trip_and_best_cell(tmp_path):
     assert [p.name for p in tmp_path.iterdir()] == ["grid.csv"]  # no temporary file left behind
 
 
+def test_a_grid_stopped_part_way_keeps_its_finished_cells(capsys, tmp_path, monkeypatch):
+    """grid.csv after every cell: a Ctrl-C after two of four cells leaves those two on disk, and each
+    finished cell is a line in a log (no live bar off a terminal)."""
+    import foam_bridge.grid
+    import jaxsimrl.cli.foam
+
+    def two_cells_then_interrupted(*args, on_cell, **kwargs):
+        on_cell(CELLS[1])
+        on_cell(CELLS[0])
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(jaxsimrl.cli.foam, "_check_openfoam", lambda: None)
+    monkeypatch.setattr(foam_bridge.grid, "run_grid", two_cells_then_interrupted)
+    out = tmp_path / "out"
+    argv = ("--alpha-u", "0.5", "0.9", "--alpha-p", "0.5", "0.9", "--out", str(out))
+    code, err, stdout = run_cli(capsys, *argv)
+    assert code != 0 and "interrupted" in err
+    assert read_grid_csv(out / "grid.csv") == [CELLS[1], CELLS[0]]
+    lines = stdout.splitlines()
+    assert [line.split()[0] for line in lines] == ["[1/4]", "[2/4]"]
+    assert "(0.5, 0.9) converged @ 1053" in lines[0]
+
+
 def test_heatmap_is_a_png_of_the_grid(tmp_path):
     import matplotlib.image
 

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from jaxsimrl.cli.errors import fail, positive_float, positive_int, seed_type
+from jaxsimrl.cli.progress import RunProgress
 
 
 def register(subparsers: Any) -> None:
@@ -118,49 +119,18 @@ def run_eval_foam(args: argparse.Namespace) -> int:
     return 0
 
 
-class EvalProgress:
-    """A rich bar over the planned runs on a terminal; one plain line per finished run otherwise."""
+class EvalProgress(RunProgress):
+    """eval-foam's progress: one step per finished run (cli.progress)."""
 
     def __init__(self) -> None:
-        from rich.console import Console
-
-        self.console = Console(highlight=False)
-        if not self.console.is_terminal:
-            self.console.width = LOG_WIDTH  # rich's default of 80 columns would wrap the results table
-        self._progress: Any = None
-        self._task: Any = None
-
-    def __enter__(self) -> EvalProgress:
-        if self.console.is_terminal:
-            from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-
-            columns = (TextColumn("[bold]eval-foam"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-                       TextColumn("{task.description}"))
-            self._progress = Progress(*columns, console=self.console)
-            self._progress.start()
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        if self._progress is not None:
-            self._progress.stop()
-
-    def say(self, text: str) -> None:
-        self.console.print(text, soft_wrap=True)
+        super().__init__("eval-foam")
 
     def advance(self, result: Any, done: int, total: int) -> None:
         job = result.job
-        text = (f"{job.geometry} V={job.velocity:g} {job.controller} #{job.sample}: {result.outcome} @ "
-                f"{result.iterations} it, {result.wall_time_s:.1f} s")
-        if self._progress is None:
-            self.say(f"[{done}/{total}] {text}")
-            return
-        if self._task is None:
-            self._task = self._progress.add_task("", total=total)
-        self._progress.update(self._task, completed=done, description=f"last: {text}")
+        self.step(f"{job.geometry} V={job.velocity:g} {job.controller} #{job.sample}: {result.outcome} @ "
+                  f"{result.iterations} it, {result.wall_time_s:.1f} s", done, total)
 
 
-#: Columns of the output off a terminal (logs, pipes).
-LOG_WIDTH = 120
 #: Short controller names for the terminal table.
 SHORT_NAMES = {"learned_deterministic": "learned mean", "learned_stochastic": "learned sampled",
                "best_constant": "best constant", "tutorial_defaults": "defaults", "random": "random",

@@ -9,6 +9,7 @@ Several ``--step-height`` and/or ``--inlet-velocity`` values run every factor ce
 velocity) condition: grid.csv gains step_height, inlet_velocity (and max_iterations) columns, the
 heatmaps are per condition (OUT/grid_<geometry>_V<v>[_alpha_t_<A>].png) and OUT/family_best.json holds
 the cell best for the family (jaxsimrl.evaluation.family) and the grid's cost; one line sums it up.
+grid.csv is rewritten after every finished cell: a grid stopped part-way keeps what it ran.
 Bad input (factor outside (0, 1], empty list, bad mesh scale, pool < 1, OUT an existing file, OpenFOAM
 missing) is one line on stderr and exit code 2.
 """
@@ -76,7 +77,8 @@ def register(subparsers: Any) -> None:
         "grid-foam",
         help="iterations to convergence of simpleFoam for every constant (alpha_u, alpha_p) on a grid",
         description="Run the backward-facing step with constant relaxation factors for every pair on a "
-        "grid (in parallel) and write OUT/grid.csv and a heatmap OUT/grid.png.",
+        "grid (in parallel) and write OUT/grid.csv and a heatmap OUT/grid.png. OUT/grid.csv is rewritten "
+        "after every finished cell, so a grid stopped part-way keeps the runs it finished.",
     )
     parser.add_argument("--alpha-u", type=relaxation_factor, nargs="+", required=True, metavar="A",
                         help="momentum relaxation factors, each in (0, 1]")
@@ -165,40 +167,37 @@ def _make_out_dir(out: Path) -> Path:
 
 def run_grid_foam(args: argparse.Namespace) -> int:
     """Run the grid, write grid.csv and the heatmaps (and family_best.json over several conditions),
-    print the best cell."""
-    from rich.console import Console
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-
+    print the best cell. grid.csv is rewritten (atomically) after every finished cell, so a grid that is
+    interrupted or killed keeps the runs it finished."""
     from foam_bridge.grid import run_grid, write_grid_csv
+    from jaxsimrl.cli.progress import RunProgress
 
     cfg = _config(args)
     out = _check_out_dir(args.out)
     _check_openfoam()
     _make_out_dir(out)
-    console = Console(highlight=False)
     conditions = _conditions(args)
     total = len(args.alpha_u) * len(args.alpha_p) * len(args.alpha_t or [None]) * len(conditions)
-    columns = (TextColumn("[bold]grid-foam"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-               TextColumn("{task.description}"))
-    with Progress(*columns, console=console, transient=False) as progress:
-        task = progress.add_task("", total=total)
+    finished: list[Any] = []
+    with RunProgress("grid-foam") as progress:
 
         def on_cell(cell: Any) -> None:
+            finished.append(cell)
+            write_grid_csv(finished, out / "grid.csv")  # in finishing order until the grid is complete
             factors = ", ".join(f"{f:g}" for f in cell.factors)
             where = f"H {cell.step_height:g} m, V {cell.inlet_velocity:g}: " if len(conditions) > 1 else ""
-            progress.update(task, advance=1, description=f"last: {where}({factors}) {cell.outcome} @ "
-                            f"{cell.iterations}")
+            progress.step(f"{where}({factors}) {cell.outcome} @ {cell.iterations}", len(finished), total)
 
         try:
             cells = run_grid(cfg, args.alpha_u, args.alpha_p, pool=args.pool, on_cell=on_cell,
                              alpha_t=args.alpha_t, conditions=conditions if len(conditions) > 1 else None)
         except ValueError as err:  # a case the env rejects: the same for every cell
             fail(str(err))
-    write_grid_csv(cells, out / "grid.csv")
+    write_grid_csv(cells, out / "grid.csv")  # grid order
     figures = _plot_conditions(cells, cfg, args, out)
     lines = [_best_line(cells)] if len(conditions) == 1 else _write_family_best(cells, args, out)
     written = ", ".join(str(out / f) for f in figures)
-    console.print("\n".join(lines) + f"\nwrote {out / 'grid.csv'} and {written}", soft_wrap=True)
+    progress.say("\n".join(lines) + f"\nwrote {out / 'grid.csv'} and {written}")
     return 0
 
 
