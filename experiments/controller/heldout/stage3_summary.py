@@ -13,6 +13,7 @@ Run from the repository root: ``python experiments/controller/heldout/stage3_sum
 from __future__ import annotations
 
 import csv
+import json
 import statistics
 from collections import defaultdict
 from pathlib import Path
@@ -26,16 +27,16 @@ HERE = Path(__file__).parent
 CAP = 4000
 #: alpha_p of stage 2's family constant (0.95, 0.9, 0.95; h-2h only): a cell of every oracle grid.
 H2H_ALPHA_P = 0.9
-#: name -> (eval-foam directory, the controller or controllers of its eval.csv rows)
-SOURCES: dict[str, tuple[str, str | tuple[str, ...]]] = {
-    "stage3": ("eval-stage3-update26", "learned_deterministic"),
-    "stage2": ("eval-stage2-update23-newheights", "learned_deterministic"),
-    "constant": ("eval-stage3-update26", "best_constant"),
-    "own": ("eval-stage3-update26", "tutorial_defaults"),
-    "sampled": ("baselines-stage3-update26", "learned_stochastic"),
+#: name -> (eval-foam directory, the controllers of its eval.csv rows)
+SOURCES: dict[str, tuple[str, tuple[str, ...]]] = {
+    "stage3": ("eval-stage3-update26", ("learned_deterministic",)),
+    "stage2": ("eval-stage2-update23-newheights", ("learned_deterministic",)),
+    "constant": ("eval-stage3-update26", ("best_constant",)),
+    "own": ("eval-stage3-update26", ("tutorial_defaults",)),
+    "sampled": ("baselines-stage3-update26", ("learned_stochastic",)),
     # the oracle's best cell is its case_oracle row, the grid's other cells are case_oracle_grid rows
     "oracle_grid": ("baselines-stage3-update26", ("case_oracle", "case_oracle_grid")),
-    "random": ("random-stage3", "random")}
+    "random": ("random-stage3", ("random",))}
 
 #: (controller, baseline) pairs whose per-case ratios are summarised
 PAIRS = (("stage3", "constant"), ("stage3", "oracle"), ("stage3", "own"), ("stage3", "random"),
@@ -43,13 +44,13 @@ PAIRS = (("stage3", "constant"), ("stage3", "oracle"), ("stage3", "own"), ("stag
          ("stage2", "constant"), ("stage2", "oracle"), ("stage3", "stage2"))
 
 
-def _runs() -> dict[tuple[str, str], dict[tuple[str, float], list[dict[str, str]]]]:
-    """{(name, controller): {(geometry, velocity): [rows]}} for every source."""
+def _runs() -> dict[str, dict[tuple[str, float], list[dict[str, str]]]]:
+    """{name: {(geometry, velocity): [rows]}} for every source."""
     table: dict = defaultdict(lambda: defaultdict(list))
-    for name, (folder, controller) in SOURCES.items():
+    for name, (folder, controllers) in SOURCES.items():
         with open(HERE / folder / "eval.csv", newline="") as handle:
             for row in csv.DictReader(handle):
-                if row["controller"] in ((controller,) if isinstance(controller, str) else controller):
+                if row["controller"] in controllers:
                     table[name][(row["geometry"], float(row["velocity"]))].append(row)
     return table
 
@@ -60,7 +61,7 @@ def _its(row: dict[str, str]) -> int:
 
 def _alpha_p(row: dict[str, str]) -> float:
     """alpha_p of a constant run (its first action)."""
-    return float(row["actions"].split(",")[1])
+    return json.loads(row["actions"])[0][1]
 
 
 def _mean(rows: list[dict[str, str]]) -> float:
