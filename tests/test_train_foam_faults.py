@@ -284,7 +284,7 @@ def test_ctrl_c_during_a_chunk_is_told_at_once_and_the_chunk_is_still_saved(tmp_
         session = Session(run, SlowTrainer(), MetricsLog(run), checkpoints, meta={})
         with pytest.raises(KeyboardInterrupt):
             train(session, {"update": np.int32(0)}, 0, Quiet(),
-                  on_interrupt=lambda count: told.append((count, time.monotonic() - start)))
+                  on_interrupt=lambda count, signum: told.append((count, time.monotonic() - start)))
     assert [count for count, _ in told] == [1, 2]
     assert told[-1][1] < 1.6  # while the 2 s chunk was still running
     assert run.checkpoint_steps() == [1]

@@ -19,6 +19,7 @@ from typing import Any
 from foam_bridge.env import FAILURES
 from foam_bridge.errors import OpenFOAMNotFoundError
 from foam_bridge.export import export_case
+from jaxsimrl.runs.signals import stop_word
 from jaxsimrl.solve.controller import BackgroundLoad, Controller, as_controller, policy_env_config
 from jaxsimrl.solve.drive import ControlledRun, drive
 from jaxsimrl.solve.fields import observed_mapping
@@ -62,8 +63,8 @@ def solve_case(case: str | Path, out: str | Path, policy: Any = None,
         report = _solve(case, out, policy, compare, compare_constant, max_iterations, confirm_alpha_u,
                         watchdog or WatchdogSettings(), (action_box, step_timeout_s, inlet_patch), say,
                         started, others)
-    except KeyboardInterrupt:
-        write_status(out, "interrupted", case)
+    except KeyboardInterrupt as stop:  # Ctrl-C or SIGTERM: the finally blocks below stop every solver
+        write_status(out, "interrupted", case, stop_word(stop))
         raise
     except (ValueError, OpenFOAMNotFoundError) as err:  # bad input, before any result: leave nothing
         for process in others:
