@@ -3,7 +3,7 @@
     .venv/bin/python benchmarks/bench_solve.py pitzDaily airFoil2D backwardFacingStep2D --out /tmp/bench
 
 (``--policy RUN`` solves with a train-foam run's policy instead of the shipped controller; ``--controller
-residual-rule`` or ``bandit`` with a no-training rule, jaxsimrl.solve.rules.)
+residual-rule`` with the no-training rule, jaxsimrl.solve.rules.)
 
 Prints one row per case: iterations and wall time of the controlled run and of the case's own settings,
 their ratios, solve's overhead beyond the solver's own work (and its fixed cost in seconds, with the
@@ -56,7 +56,7 @@ def main() -> None:
     parser.add_argument("--out", type=Path, required=True)
     parser.add_argument("--policy", type=Path, default=None,
                         help="a train-foam run directory (default: the shipped controller)")
-    parser.add_argument("--controller", choices=("learned", "residual-rule", "bandit"), default="learned")
+    parser.add_argument("--controller", choices=("learned", "residual-rule"), default="learned")
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     for name in args.cases:

@@ -34,11 +34,10 @@ def register(subparsers: Any) -> None:
                         "(default: ./NAME.solved, NAME the case directory's name)")
     parser.add_argument("--policy", metavar="RUN_DIR", help="a train-foam run directory (default: the "
                         "shipped controller)")
-    parser.add_argument("--controller", choices=("learned", "residual-rule", "bandit"), default="learned",
-                        help="learned: the shipped controller or --policy (default); residual-rule: raise "
-                        "the factors while the residuals fall, lower them when they grow; bandit: try three "
-                        "factor triples around the case's own and keep to the one whose steps gain most. "
-                        "The two rules need no training and act on plain SIMPLE and SIMPLEC cases alike")
+    parser.add_argument("--controller", choices=("learned", "residual-rule"), default="learned",
+                        help="learned: the shipped controller or --policy (default); residual-rule: no "
+                        "training, on plain SIMPLE and SIMPLEC cases alike: raise the factors while the "
+                        "residuals fall, lower them when they grow")
     parser.add_argument("--compare", action="store_true", help="also run the case with its own settings, "
                         "in parallel, and report the savings")
     parser.add_argument("--compare-constant", type=relaxation_factor, nargs="+", metavar="F",

@@ -1,5 +1,5 @@
-"""Relaxation without training: a residual rule and an online bandit, the baselines a learned controller
-must beat, and the first controllers here for plain-SIMPLE cases.
+"""Relaxation without training: a residual rule, a baseline a learned controller must beat, and the first
+controller here for plain-SIMPLE cases.
 
 Both act at the env's step boundaries on what every case has: the initial residuals of its criterion's
 fields (``log10(residual / threshold)`` per field, the watchdog's distance; jaxsimrl.solve.watchdog), never
@@ -13,12 +13,12 @@ algorithm tolerates (foam_bridge.user_case.action_box), starting from the case's
   first version judged each field alone (raise when every field fell, lower when any grew or stalled):
   on pitzDaily it lowered the factors on the early rise of U's residual and oscillated, 450 iterations
   against the case's own 282.
-- :class:`Bandit` (after Khodak et al. 2024, who tune a solver's settings online inside one run): three
-  factor triples around the case's own (:func:`_bandit_arms`), one chosen per step of 25 iterations by
-  UCB1 on a reward that stays comparable from the first step to the last (:meth:`Bandit.reward`). 25:
-  a 200-300-iteration case then has 8-12 decisions, enough to try each arm once after the start-up
-  step and exploit the best for the rest; shorter steps would score arms on the iteration-to-iteration
-  noise of the residuals.
+
+An online bandit (UCB1 over a few factor triples, one per step of 25 iterations) is not offered yet: on
+SIMPLEC tutorials its arms at the box's top gained (T3A 212 iterations, own 269), but one step there grew
+a plain-SIMPLE case's residuals by 1.2 decades and the watchdog handed the run to the case's own factors
+for good; with safer arms it settled on the case's own factors (pitzDaily 277 against 282). Branch
+``bandit-wip`` holds it.
 
 Their constants are module-level and chosen on the controller issue's training cases (the built-in step
 and OpenFOAM's pitzDaily, pitzDailyExptInlet, airFoil2D, backwardFacingStep2D and T3A) only.
@@ -35,13 +35,11 @@ from typing import Any
 from foam_bridge.config import K_OMEGA_ACTION, FoamEnvConfig
 from jaxsimrl.solve.watchdog import Watchdog, WatchdogSettings
 
-__all__ = ["INTERVALS", "RULES", "Bandit", "ResidualRule", "RulePolicy"]
+__all__ = ["INTERVALS", "RULES", "ResidualRule", "RulePolicy"]
 
 #: Iterations between two decisions. 50 leaves 4-6 decisions on a 200-300-iteration case (pitzDaily, T3A)
 #: while a step still moves the residuals by more than their iteration-to-iteration noise.
 RULE_INTERVAL = 50
-#: The bandit decides more often: it must try each arm before it can exploit one.
-BANDIT_INTERVAL = 25
 #: ResidualRule: the share of the way to the box's top taken after a step in which every field fell ...
 RAISE_SHARE = 0.5
 #: ... and to its bottom after one in which a field grew or stalled.
@@ -52,8 +50,6 @@ NOISE_DECADES = 0.02
 #: ... and "grew" when it rose by more than this. Not 0: a developing flow's residuals rise for a while
 #: under any factors (pitzDaily's U, iterations 50-100, at its own factors).
 GROWTH_DECADES = 0.3
-#: UCB1's exploration weight, on rewards normalised to about 1 (Bandit.reward).
-UCB_WEIGHT = 0.5
 
 
 def _distance(residuals: Mapping[str, float], criterion: Mapping[str, float]) -> float:
@@ -126,78 +122,9 @@ class ResidualRule(_Rule):
                 "lower_share": LOWER_SHARE, "noise_decades": NOISE_DECADES, "growth_decades": GROWTH_DECADES}
 
 
-@dataclass
-class Bandit(_Rule):
-    """UCB1 over a few factor pairs, one per step, rewarded by the residual drop (module docstring)."""
-
-    name: str = "bandit"
-    interval: int = BANDIT_INTERVAL
-    arms: list[list[float]] = field(default_factory=list)
-    pulls: list[int] = field(default_factory=list)
-    rewards: list[float] = field(default_factory=list)
-    _gains: list[float] = field(default_factory=list)
-    _last: float | None = None
-    _arm: int = 0
-
-    def __post_init__(self) -> None:
-        if not self.arms:
-            self.arms = _bandit_arms(self.own, self.low, self.high)
-        self.pulls, self.rewards = [0] * len(self.arms), [0.0] * len(self.arms)
-
-    def first(self) -> list[float]:
-        self._arm = 0  # the case's own factors first: its first step is the start-up transient
-        return list(self.arms[0])
-
-    def next(self, residuals: Mapping[str, float]) -> list[float]:
-        distance = _distance(residuals, self.criterion)
-        last, self._last = self._last, distance
-        if last is not None and math.isfinite(distance) and math.isfinite(last):
-            self.pulls[self._arm] += 1
-            self.rewards[self._arm] += self.reward(last - distance)
-        self._arm = self._choose()
-        return list(self.arms[self._arm])
-
-    def reward(self, gain: float) -> float:
-        """The step's gain (decades of the worst field's distance to the criterion) over the mean gain of
-        all steps so far: a run's gain per step shrinks as it converges, so the raw gain would favour the
-        arms tried early; relative to the run's own pace it stays comparable from the first step to the
-        last. A step that lost ground scores below 0."""
-        self._gains.append(gain)
-        scale = sum(abs(g) for g in self._gains) / len(self._gains)
-        return gain / scale if scale > 0 else 0.0
-
-    def constants(self) -> dict[str, Any]:
-        return {"rule": self.name, "interval": self.interval, "arms": self.arms, "ucb_weight": UCB_WEIGHT,
-                "pulls": self.pulls}
-
-    def _choose(self) -> int:
-        untried = [arm for arm, pulls in enumerate(self.pulls) if pulls == 0]
-        if untried:
-            return untried[0]
-        total = sum(self.pulls)
-        scores = [self.rewards[arm] / pulls + UCB_WEIGHT * math.sqrt(2 * math.log(total) / pulls)
-                  for arm, pulls in enumerate(self.pulls)]
-        return max(range(len(self.arms)), key=scores.__getitem__)
-
-
-def _bandit_arms(own: Sequence[float], low: Sequence[float], high: Sequence[float]) -> list[list[float]]:
-    """The case's own factors; every factor half-way from them to the box's top; and momentum and
-    turbulence half-way up with pressure at its own. Not the box's top corner: one step there grew
-    pitzDailyExptInlet's residuals (plain SIMPLE) by 1.2 decades, and the watchdog then handed the run to
-    the case's own factors for good, 1.05x its own iterations."""
-    own = _clip(own, low, high)
-    half = [o + 0.5 * (h - o) for o, h in zip(own, high, strict=True)]
-    moderate = [half[0], own[1], *half[2:]]
-    arms: list[list[float]] = []
-    for arm in (own, half, moderate):
-        if not any(all(abs(a - b) < 1e-6 for a, b in zip(arm, seen, strict=True)) for seen in arms):
-            arms.append(arm)
-    return arms
-
-
 #: The rules solve offers (``--controller NAME``), and the step length each decides at.
-RULES: dict[str, type[_Rule]] = {"residual-rule": ResidualRule, "bandit": Bandit}
-INTERVALS = {"residual-rule": RULE_INTERVAL, "bandit": BANDIT_INTERVAL}
+RULES: dict[str, type[_Rule]] = {"residual-rule": ResidualRule}
+INTERVALS = {"residual-rule": RULE_INTERVAL}
 
 
 @dataclass(frozen=True)
