@@ -9,12 +9,13 @@ as a user's case. Once every solver is ``--into`` iterations into a step, the si
 the time until no OpenFOAM process the bridge started is left is measured. Beside it, what a solver that
 ran on to the end of its step would have cost: the iterations left in the step times the solver's own
 seconds per iteration (its log). Prints a row per run and writes OUT/stops.jsonl and OUT/stops.md
-(medians per command and signal, machine and date).
+(medians per command and signal, machine and date); run again, it adds what OUT/stops.jsonl lacks.
 """
 
 from __future__ import annotations
 
 import argparse
+import collections
 import datetime
 import json
 import os
@@ -61,8 +62,12 @@ def commands(root: Path, mesh_scale: float) -> dict[str, list[str]]:
 
 
 def _logs(root: Path) -> list[Path]:
-    """The episodes' solver logs (not those of the case checks' one-iteration dry runs)."""
-    return [log for log in root.rglob("log.simpleFoam") if "episode" in log.parts]
+    """The episodes' solver logs (not those of the case checks' one-iteration dry runs); none while a
+    scratch directory vanishes under the walk."""
+    try:
+        return [log for log in root.rglob("log.simpleFoam") if "episode" in log.parts]
+    except FileNotFoundError:
+        return []
 
 
 def _progress(log: Path) -> tuple[int, float]:
@@ -133,10 +138,14 @@ def main() -> None:
     parser.add_argument("--into", type=int, default=5, help="iterations into a step before the signal")
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
-    rows = []
+    log = args.out / "stops.jsonl"
+    rows = [json.loads(line) for line in log.read_text().splitlines()] if log.is_file() else []
+    done = collections.Counter((row["command"], row["signal"]) for row in rows)  # resumes a stopped run
     for repeat in range(args.repeats):
         for name in ("solve", "train-foam", "grid-foam"):
             for sig in SIGNALS.values():
+                if done[(name, sig.name)] > repeat:
+                    continue
                 root = args.out / f"{name}-{sig.name}-{repeat}"
                 shutil.rmtree(root, ignore_errors=True)
                 root.mkdir()
@@ -144,7 +153,7 @@ def main() -> None:
                 row = one_stop(name, argv, sig, root, args.into, 1 if name == "solve" else 2)
                 rows.append(row)
                 print(json.dumps(row), flush=True)
-                with open(args.out / "stops.jsonl", "a") as handle:
+                with open(log, "a") as handle:
                     handle.write(json.dumps(row) + "\n")
                 shutil.rmtree(root, ignore_errors=True)
     print(report(rows, args.out, args.mesh_scale))
