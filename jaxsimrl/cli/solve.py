@@ -35,9 +35,9 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--policy", metavar="RUN_DIR", help="a train-foam run directory (default: the "
                         "shipped controller)")
     parser.add_argument("--controller", choices=("learned", "residual-rule"), default="learned",
-                        help="learned: the shipped controller or --policy (default); residual-rule: no "
-                        "training, on plain SIMPLE and SIMPLEC cases alike: raise the factors while the "
-                        "residuals fall, lower them when they grow")
+                        help="learned: the shipped controller or --policy (default); residual-rule "
+                        "(experimental): no training, on plain SIMPLE and SIMPLEC cases alike: raise the "
+                        "factors while the residuals fall, lower them when they grow")
     parser.add_argument("--compare", action="store_true", help="also run the case with its own settings, "
                         "in parallel, and report the savings")
     parser.add_argument("--compare-constant", type=relaxation_factor, nargs="+", metavar="F",
