@@ -157,8 +157,9 @@ def test_a_grid_stopped_part_way_keeps_its_finished_cells(capsys, tmp_path, monk
     assert code != 0 and "interrupted" in err
     assert read_grid_csv(out / "grid.csv") == [CELLS[1], CELLS[0]]
     lines = stdout.splitlines()
-    assert [line.split()[0] for line in lines] == ["[1/4]", "[2/4]"]
+    assert [line.split()[0] for line in lines] == ["[1/4]", "[2/4]", "stopped:"]
     assert "(0.5, 0.9) converged @ 1053" in lines[0]
+    assert lines[2] == f"stopped: 2 of 4 cells finished ({out / 'grid.csv'} holds them)"
 
 
 def test_heatmap_is_a_png_of_the_grid(tmp_path):
