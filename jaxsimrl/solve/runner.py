@@ -13,6 +13,7 @@ import os
 import shutil
 import time
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -20,6 +21,7 @@ from foam_bridge.env import FAILURES
 from foam_bridge.errors import OpenFOAMNotFoundError
 from foam_bridge.export import export_case
 from jaxsimrl.solve.controller import BackgroundLoad, Controller, as_controller, policy_env_config
+from jaxsimrl.solve.criterion import Residual, converged_by, describe, reported, source_of, write_criterion
 from jaxsimrl.solve.drive import ControlledRun, drive
 from jaxsimrl.solve.fields import observed_mapping
 from jaxsimrl.solve.own import OwnProcess, OwnRun
@@ -45,12 +47,16 @@ def solve_case(case: str | Path, out: str | Path, policy: Any = None,
                watchdog: WatchdogSettings | None = None,
                action_box: tuple[Sequence[float], Sequence[float]] | None = None,
                step_timeout_s: float = 300.0, inlet_patch: str = "inlet",
-               say: Callable[[str], None] | None = None) -> SolveReport:
+               say: Callable[[str], None] | None = None, residual: Residual | str | None = None
+               ) -> SolveReport:
     """Run ``case`` with the controller (``policy``: a run directory, a :class:`Controller`, a policy from
     ``jaxsimrl.load_policy``, or None for the shipped one) into ``out``; see the module docstring. Bad
     input (a missing or decomposed case, a non-empty ``out``, a case the bridge cannot drive, a bad
     policy): one-line ValueError before any result is claimed. ``action_box`` replaces the case's own box
-    (experiments only); ``inlet_patch``: the patch whose mean |U|^2 the controller observes."""
+    (experiments only); ``inlet_patch``: the patch whose mean |U|^2 the controller observes;
+    ``residual``: the convergence criterion instead of the case's residualControl, for every run of the
+    solve and written into ``out``'s fvSolution (jaxsimrl.solve.criterion: ``1e-4``, ``{"p": 1e-3}`` or
+    ``"p=1e-3,U=1e-4"``)."""
     say = say or (lambda text: None)
     case, out = _check_paths(case, out)
     started = time.monotonic()
@@ -60,8 +66,8 @@ def solve_case(case: str | Path, out: str | Path, policy: Any = None,
     others: list[OwnProcess] = []
     try:
         report = _solve(case, out, policy, compare, compare_constant, max_iterations, confirm_alpha_u,
-                        watchdog or WatchdogSettings(), (action_box, step_timeout_s, inlet_patch), say,
-                        started, others)
+                        watchdog or WatchdogSettings(), (action_box, step_timeout_s, inlet_patch), residual,
+                        say, started, others)
     except KeyboardInterrupt:
         write_status(out, "interrupted", case)
         raise
@@ -104,8 +110,8 @@ def _check_paths(case: str | Path, out: str | Path) -> tuple[Path, Path]:
 
 def _solve(case: Path, out: Path, policy: Any, compare: bool, constant: Sequence[float] | None,
            max_iterations: int | None, confirm: float | None, watchdog: WatchdogSettings,
-           env: tuple[Any, float, str], say: Callable[[str], None], started: float,
-           others: list[OwnProcess]) -> SolveReport:
+           env: tuple[Any, float, str], residual: Residual | str | None, say: Callable[[str], None],
+           started: float, others: list[OwnProcess]) -> SolveReport:
     # What waits on what: the controller loads (JAX, its acting arrays, the first action compiled) in a
     # thread from here on, beside the case check (copy, mesh, one SIMPLE iteration: once, the controlled
     # run's env starts from its build) and the worker's start; the first step waits for both, every
@@ -117,30 +123,40 @@ def _solve(case: Path, out: Path, policy: Any, compare: bool, constant: Sequence
     trained = policy.policy.env_params if isinstance(policy, Controller) else policy_env_config(policy)
     settings = read_case_settings(case)
     budget = max_iterations or settings.budget or DEFAULT_MAX_ITERATIONS
-    cfg, checked = solve_config(case, trained, out / WORK_DIR, budget, confirm, *env)
+    cfg, checked = solve_config(case, trained, out / WORK_DIR, budget, confirm, *env, residual=residual)
     phases["case_check_s"], mark = time.monotonic() - mark, time.monotonic()
+    own = Own(settings.flat, None if residual is None else dict(cfg.convergence))
     parallel = len(os.sched_getaffinity(0)) >= 2  # else the runs would share one core: one after the other
-    comparisons = _start_comparisons(case, out, compare, constant, settings.flat, others) if parallel else {}
+    comparisons = _start_comparisons(case, out, compare, constant, own, others) if parallel else {}
     observed = observed_mapping(trained, checked.info.solved_fields)[0]
-    say(f"solve {case}: criterion {dict(cfg.convergence)}, box {cfg.action_low}-{cfg.action_high}, "
-        f"budget {budget} iterations" + (f", observes {observed}" if observed else ""))
+    criterion_from = source_of(cfg.convergence, residual)
+    say(f"solve {case}: criterion {describe(reported(cfg.convergence), criterion_from)}, box "
+        f"{cfg.action_low}-{cfg.action_high}, budget {budget} iterations"
+        + (f", observes {observed}" if observed else ""))
     controller = policy if loading is None else loading
     run = _controlled(cfg, trained, settings, controller, watchdog, say, checked)
     controller = controller if loading is None else loading.result()
     phases["controlled_run_s"], mark = time.monotonic() - mark, time.monotonic()
     rescue = None
     if run.outcome == "not run" or run.outcome in FAILURES:  # a run that reached the budget keeps its fields
-        rescue = _own_rescue(case, out, comparisons, run, say)
+        rescue = _own_rescue(case, out, comparisons, run, own, say)
     episode = out / WORK_DIR / "env_0" / "episode"
     time_name = export_case(Path(rescue.case) if rescue is not None else episode, case, out)
+    if own.criterion is not None:  # a plain simpleFoam restart of out stops where this solve did
+        write_criterion(out, own.criterion)
     phases["fallback_and_export_s"] = time.monotonic() - mark
     wall = time.monotonic() - started
     if not parallel:
-        comparisons = _start_comparisons(case, out, compare, constant, settings.flat, others)
+        comparisons = _start_comparisons(case, out, compare, constant, own, others)
     results = {name: process.result(24 * 3600.0) for name, process in comparisons.items()}
     report = build_report(case, out, controller, cfg, run, rescue, time_name, wall, results, episode,
                           observed if run.outcome != "not run" else None)
     report.data["result"]["phases"] = phases
+    report.data["settings"]["criterion"] = reported(cfg.convergence)
+    report.data["settings"]["criterion_from"] = criterion_from
+    report.data["result"]["converged_by"] = converged_by(run, rescue, criterion_from)
+    for name, other in results.items():
+        report.data["compare"][name]["converged_by"] = converged_by(None, other, criterion_from)
     report.data["compare_parallel"] = parallel
     write_report(out, report)
     return report
@@ -162,10 +178,20 @@ def _controlled(cfg: Any, trained: Any, settings: Any, controller: Any, watchdog
     return drive(cfg, policy, fallback, lambda speed: observation_factor(trained, speed), watchdog, say,
                  checked)
 
-def _start_comparisons(case: Path, out: Path, compare: bool, constant: Sequence[float] | None, flat: bool,
+@dataclass(frozen=True)
+class Own:
+    """How the case's own runs (comparisons, fallback) run: whether its relaxationFactors are flat, and
+    the criterion given to solve (None: the case's own residualControl), which they must share to be
+    comparable."""
+
+    flat: bool
+    criterion: dict[str, float] | None
+
+
+def _start_comparisons(case: Path, out: Path, compare: bool, constant: Sequence[float] | None, own: Own,
                        others: list[OwnProcess]) -> dict[str, OwnProcess]:
-    """The comparison runs (the case's own controlDict, budget included), started now: they run beside
-    the controlled one, and the report gives the cores the runs shared."""
+    """The comparison runs (the case's own controlDict, budget included; solve's criterion), started now:
+    they run beside the controlled one, and the report gives the cores the runs shared."""
     wanted: dict[str, Sequence[float] | None] = {}
     if compare:
         wanted["own"] = None
@@ -175,12 +201,12 @@ def _start_comparisons(case: Path, out: Path, compare: bool, constant: Sequence[
     for name, factors in wanted.items():
         dest = out / COMPARE_DIR / name
         dest.parent.mkdir(parents=True, exist_ok=True)
-        started[name] = OwnProcess(case, dest, name, 24 * 3600.0, factors, flat)
+        started[name] = OwnProcess(case, dest, name, 24 * 3600.0, factors, own.flat, own.criterion)
         others.append(started[name])
     return started
 
 
-def _own_rescue(case: Path, out: Path, comparisons: dict[str, OwnProcess], run: Any,
+def _own_rescue(case: Path, out: Path, comparisons: dict[str, OwnProcess], run: Any, own: Own,
                 say: Callable[[str], None]) -> OwnRun:
     """The case run with its own settings from its initial fields (the comparison's run if there is one)."""
     if run.outcome != "not run":
@@ -188,7 +214,7 @@ def _own_rescue(case: Path, out: Path, comparisons: dict[str, OwnProcess], run: 
     if "own" in comparisons:
         result = comparisons["own"].result(24 * 3600.0)
     else:
-        process = OwnProcess(case, out / WORK_DIR / "own", "own", 24 * 3600.0, None, False)
+        process = OwnProcess(case, out / WORK_DIR / "own", "own", 24 * 3600.0, None, False, own.criterion)
         try:
             result = process.result(24 * 3600.0)
         finally:

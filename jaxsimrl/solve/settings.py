@@ -2,9 +2,10 @@
 
 The MDP is the policy's (step interval, observation layout, what the actions mean, the fields whose
 residuals it observes: the case's fields of the same roles, jaxsimrl.solve.fields), everything about
-the case is the case's (its residualControl as the criterion, the action box its algorithm tolerates,
-its turbulence relaxation, its inlet, its own iteration budget), and convergence is confirmed at a
-fixed relaxation (foam_bridge.confirm) so that no unconverged field is reported as converged.
+the case is the case's (its residualControl as the criterion unless ``--residual`` gives one,
+jaxsimrl.solve.criterion; the action box its algorithm tolerates, its turbulence relaxation, its inlet,
+its own iteration budget), and convergence is confirmed at a fixed relaxation (foam_bridge.confirm) so
+that no unconverged field is reported as converged.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from foam_bridge.config import FoamEnvConfig
+from jaxsimrl.solve.criterion import Residual, resolve, stop_only, stopping_function_objects
 from jaxsimrl.solve.fields import observed_mapping
 
 #: FoamEnvConfig fields that define the policy's MDP (observation, action meaning); copied when present.
@@ -129,10 +131,12 @@ def _budget(control: dict[str, Any]) -> int | None:
 
 def solve_config(case: Path, policy_cfg: FoamEnvConfig, work: Path, max_iterations: int,
                  confirm_alpha_u: float | None, action_box: tuple[Sequence[float], Sequence[float]] | None,
-                 step_timeout_s: float, inlet_patch: str = "inlet") -> tuple[FoamEnvConfig, CheckedCase]:
+                 step_timeout_s: float, inlet_patch: str = "inlet", residual: Residual | str | None = None
+                 ) -> tuple[FoamEnvConfig, CheckedCase]:
     """The env config of the controlled run (see the module docstring) and the case as its check built
     it (``work/checked`` and its CaseInfo: the controlled run's env starts from it instead of building
     and dry-running the case again); one-line CaseError/ValueError if the bridge cannot drive the case.
+    ``residual``: the criterion instead of the case's residualControl (jaxsimrl.solve.criterion).
 
     Starting from the check's build is safe: the check builds exactly what the env would (the same
     copy, mesh and dry run, foam_bridge.base_case.check_case), from this config before the case's own
@@ -140,6 +144,8 @@ def solve_config(case: Path, policy_cfg: FoamEnvConfig, work: Path, max_iteratio
     the case's own factors, or the box's lower corner, which is the built-in one for a case without own
     factors)."""
     from foam_bridge.base_case import check_case, check_case_files
+    from foam_bridge.errors import NoResidualControl
+    from foam_bridge.logparse import solved_field_names
     from foam_bridge.openfoam import find_openfoam
     from jaxsimrl.envs.foam_config import user_case_config
 
@@ -157,11 +163,37 @@ def solve_config(case: Path, policy_cfg: FoamEnvConfig, work: Path, max_iteratio
     check_case_files(case, cfg, need_mesh=False)  # a wrong path says so, OpenFOAM or not
     info = check_case(case, cfg, find_openfoam(cfg.openfoam_path), work)
     checked = CheckedCase(work / "checked", info)
-    cfg = user_case_config(cfg, explicit, checked=(checked.directory, checked.info))
+    try:
+        cfg = user_case_config(cfg, explicit + ["convergence"] * (residual is not None),
+                               checked=(checked.directory, checked.info))
+    except NoResidualControl as err:  # train-foam's hint names its --config; solve has a flag
+        cfg = _stopped_by_the_case(cfg, explicit, checked, err.where)
+    if residual is not None:
+        criterion = resolve(residual, solved_field_names(info.solved_fields), case)
+        cfg = dataclasses.replace(cfg, convergence=criterion).validate()
     mapping, _ = observed_mapping(policy_cfg, info.solved_fields)  # no mapping: not_applicable says why
     if mapping is not None:
         cfg = dataclasses.replace(cfg, observed_fields=tuple(mapping.values())).validate()
     return cfg, checked
+
+
+def _stopped_by_the_case(cfg: FoamEnvConfig, explicit: list[str], checked: CheckedCase, where: Any
+                         ) -> FoamEnvConfig:
+    """``cfg`` of a case without residualControl: its runTimeControl's criterion alone
+    (jaxsimrl.solve.criterion) and its own box; else a one-line CaseError naming --residual."""
+    from foam_bridge import foamdict
+    from foam_bridge.errors import CaseError
+    from foam_bridge.logparse import solved_field_names
+    from foam_bridge.openfoam import find_openfoam
+    from jaxsimrl.envs.foam_config import user_case_config
+
+    controls = foamdict.expand(find_openfoam(cfg.openfoam_path), checked.directory, "system/controlDict")
+    if not stopping_function_objects(controls):
+        raise CaseError(f"{where}: SIMPLE has no residualControl (nor a runTimeControl function object that "
+                        f"ends the run), so simpleFoam never stops converged: give a criterion with "
+                        f"--residual (1e-4 for every field, or p=1e-3,U=1e-4)")
+    cfg = user_case_config(cfg, [*explicit, "convergence"], checked=(checked.directory, checked.info))
+    return dataclasses.replace(cfg, convergence=stop_only(solved_field_names(checked.info.solved_fields)))
 
 
 def own_action(settings: CaseSettings, cfg: FoamEnvConfig, size: int) -> list[float]:
