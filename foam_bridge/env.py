@@ -196,7 +196,7 @@ class FoamCaseEnv:
         reference = max(inlet, cells, 0.0 if math.isnan(velocity) else velocity**2)
         state_limit = self.cfg.state_divergence_ratio * reference if reference > 0 else math.inf
         self._parser = LogParser(episode_case.CELLS_FUNCTION, episode_case.INLET_FUNCTION,
-                                 self.cfg.divergence_threshold, state_limit)
+                                 self.cfg.divergence_threshold, state_limit, start=self.cfg.start_time)
         self._iterations = self._target = 0
         self._restart_at: int | None = None  # a failed check: the solver goes on from these fields
         self._unconfirmed = False  # a check has failed: the boundaries are checked from now on

@@ -121,7 +121,8 @@ class LogParser:
     restarted from its fields: their counts start from 0 again),
     ``converged_at``, ``stopped_at`` and ``stopped_by`` (the iteration after which the case's own
     runTimeControl ended the run, and its name), ``fvsolution_rereads``, ``error`` (first crash line),
-    ``diverged`` (cause text)
+    ``diverged`` (cause text). Iterations are counted from ``start`` (a run restarted from that time
+    directory: its ``Time = start + K`` is iteration K).
     and ``failed_at`` (the iteration in which divergence was detected; the parser ignores all output
     after that line).
     """
@@ -146,6 +147,7 @@ class LogParser:
     error: str | None = None
     diverged: str | None = None
     failed_at: int | None = None
+    start: int = 0
     _current: dict[str, float] = field(default_factory=dict)
     _clock: CpuClock = field(default_factory=CpuClock)
     _pending_function: str | None = None
@@ -174,7 +176,7 @@ class LogParser:
             self.error = f"{self.error}: {line.strip()}"
             self._pending_error = False
         if match := _TIME.match(line):
-            self.iteration = int(round(_to_float(match.group(1))))
+            self.iteration = int(round(_to_float(match.group(1)))) - self.start
             self._current = {}
         elif match := _SOLVE.search(line):
             self.linear_iterations += int(match.group(4) or 0)
@@ -194,7 +196,7 @@ class LogParser:
         elif _REREAD.search(line):
             self.fvsolution_rereads += 1
         elif match := _CONVERGED.search(line):
-            self.converged_at = int(round(_to_float(match.group(1))))
+            self.converged_at = int(round(_to_float(match.group(1)))) - self.start  # it prints the time
         elif match := _RUN_TIME_CONTROL.match(line):
             self._run_time_control = match.group(1)
         elif _STOPPING.match(line) and self._run_time_control is not None:

@@ -216,3 +216,11 @@ def test_a_run_time_control_stop_is_the_case_own_end() -> None:
     unmet = LogParser("cells", "inlet")
     unmet.feed(RUN_TIME_CONTROL_STOP.replace("    Stopping calculation\n", "    Conditions not met\n"))
     assert unmet.stopped_at is None and unmet.error is None
+
+
+def test_a_run_restarted_from_a_later_time_counts_its_iterations_from_there() -> None:
+    parser = LogParser("cells", "inlet", start=100)
+    parser.feed("Time = 101\n\nsmoothSolver:  Solving for Ux, Initial residual = 0.01, "
+                "Final residual = 0.001, No Iterations 2\nExecutionTime = 0.1 s  ClockTime = 0 s\n\n"
+                "SIMPLE solution converged in 101 iterations\n")
+    assert (parser.completed, parser.converged_at, parser.history) == (1, 1, [{"Ux": 0.01}])

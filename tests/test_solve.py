@@ -26,6 +26,7 @@ from foamlib import FoamFile
 from foam_bridge import case as foam_case
 from foam_bridge import foamdict
 from foam_bridge.config import FoamEnvConfig
+from foam_bridge.logparse import LogParser
 from foam_bridge.openfoam import BRIDGE_MARK, find_openfoam
 from jaxsimrl import load_policy
 from jaxsimrl.solve import DEFAULT_CONTROLLER, Controller, solve_case
@@ -207,6 +208,69 @@ def test_a_run_time_control_stop_is_converged_by_the_case_criterion(tmp_path: Pa
     assert own["converged"] and "    Stopping calculation" in own_log
     assert own["iterations"] == _last_time(own_log)
     assert own["iterations"] < 2000  # it stopped there, not at its endTime
+
+
+def _partly_run_pitz_daily(tmp_path: Path) -> tuple[Path, str]:
+    """pitzDaily run for 100 iterations by plain simpleFoam (so it has 0/ and 100/; its endTime back at
+    2000), and that run's log."""
+    case = _pitz_daily(tmp_path)
+    control = case / "system" / "controlDict"
+    own = control.read_text()
+    control.write_text(own.replace("endTime         2000;", "endTime         100;"))
+    subprocess.run(["blockMesh"], cwd=case, env=FOAM_ENV, capture_output=True, timeout=60, check=True)
+    log = subprocess.run(["simpleFoam"], cwd=case, env=FOAM_ENV, capture_output=True, text=True, timeout=300,
+                         check=True).stdout
+    control.write_text(own)
+    assert (case / "100" / "U").is_file()
+    return case, log
+
+
+def _parsed(log: str) -> LogParser:
+    parser = LogParser("", "")
+    parser.feed(log)
+    parser.finish()
+    return parser
+
+
+def _first_time(log: str) -> int:
+    return int(next(line for line in log.splitlines() if line.startswith("Time = ")).split()[-1])
+
+
+def test_a_case_with_a_later_time_goes_on_from_it(tmp_path: Path) -> None:
+    case, first = _partly_run_pitz_daily(tmp_path)
+    out = tmp_path / "out"
+    report = solve_case(case, out, compare=True, step_timeout_s=120)
+    data = json.loads((out / "solve.json").read_text())
+    result, own = data["result"], data["compare"]["own"]
+    assert report.converged and data["settings"]["started_from"] == "time 100 (latest)"
+    assert "started from time 100 (latest)" in report.summary()
+    assert data["settings"]["max_iterations"] == 1900  # endTime 2000 minus the start
+    log = (out / "log.simpleFoam").read_text()
+    assert _first_time(log) == 101 and result["time_directory"] == str(100 + result["iterations"])
+    assert _last_time(log) == 100 + result["iterations"]
+    # it went on: its first residuals are those where the first run stopped, not those of a start from 0
+    before, after = _parsed(first).history, _parsed(log).history
+    assert before[0]["Ux"] == 1.0 and after[0]["Ux"] < 10 * before[-1]["Ux"] < 0.1
+    assert (out / "100" / "U").is_file() and (out / result["time_directory"] / "U").is_file()
+    own_log = (out / "compare" / "own" / "log.simpleFoam").read_text()  # the own run goes on from 100 too
+    assert own["converged"] and _first_time(own_log) == 101 and _last_time(own_log) == 100 + own["iterations"]
+    _check_normal_case(out, result["time_directory"])
+
+
+def test_from_time_picks_the_start_and_an_unknown_one_is_refused(tmp_path: Path) -> None:
+    case, first = _partly_run_pitz_daily(tmp_path)
+    process = _cli(str(case), "--out", str(tmp_path / "bad"), "--from-time", "50", cwd=tmp_path)
+    _, err = process.communicate(timeout=120)
+    assert process.returncode == 2 and err.count("\n") == 1 and "no time directory 50" in err
+    assert not (tmp_path / "bad").exists()
+    out = tmp_path / "out"
+    report = solve_case(case, out, from_time=0, step_timeout_s=120)
+    data = json.loads((out / "solve.json").read_text())
+    assert report.converged and data["settings"]["started_from"] == "time 0 (--from-time)"
+    log = (out / "log.simpleFoam").read_text()  # it re-started: the first iteration of the first run
+    assert _first_time(log) == 1 and _parsed(log).history[0]["Ux"] == _parsed(first).history[0]["Ux"] == 1.0
+    assert data["settings"]["max_iterations"] == 2000 and not (out / "100").exists()
+    assert data["result"]["time_directory"] == str(data["result"]["iterations"])
 
 
 def test_watchdog_fires_on_growth_and_on_stall_only() -> None:

@@ -43,8 +43,12 @@ def register(subparsers: Any) -> None:
                         help="the convergence criterion instead of the case's SIMPLE residualControl (needed "
                         "when it has none): 1e-4 for every solved field, or p=1e-3,U=1e-4 for those fields; "
                         "used by the --compare runs too and written into --out's fvSolution")
+    parser.add_argument("--from-time", type=time_value, metavar="T", dest="from_time",
+                        help="the case's time directory to start from (default: its latest, as startFrom "
+                        "latestTime: a partly converged run goes on from its fields; 0 starts over)")
     parser.add_argument("--max-iterations", type=positive_int, metavar="N",
-                        help="iteration budget (default: the case's controlDict endTime / deltaT)")
+                        help="iteration budget (default: the case's controlDict endTime minus the start "
+                        "time, / deltaT)")
     parser.add_argument("--confirm-alpha-u", type=check_factor, default=0.9, metavar="A",
                         dest="confirm_alpha_u", help="the convergence check relaxation cannot move: one "
                         "SIMPLE iteration at alpha_u = A from the converged fields (default 0.9)")
@@ -65,6 +69,17 @@ def residual_spec(text: str) -> Any:
         return parse_residual(text)
     except ValueError as err:
         raise argparse.ArgumentTypeError(str(err)) from None
+
+
+def time_value(text: str) -> float:
+    """argparse type of --from-time: a time >= 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a time >= 0, got {text!r}") from None
+    if not 0 <= value < float("inf"):
+        raise argparse.ArgumentTypeError(f"expected a time >= 0, got {text!r}")
+    return value
 
 
 def compilation_cache() -> None:
@@ -98,7 +113,8 @@ def run_solve(args: argparse.Namespace) -> int:
         report = solve_case(args.case, out, policy=args.policy, compare=args.compare,
                             compare_constant=args.compare_constant, max_iterations=args.max_iterations,
                             confirm_alpha_u=args.confirm_alpha_u, step_timeout_s=args.step_timeout,
-                            inlet_patch=args.inlet_patch, say=say, residual=args.residual)
+                            inlet_patch=args.inlet_patch, say=say, residual=args.residual,
+                            from_time=args.from_time)
     except (ValueError, CaseError, OpenFOAMNotFoundError) as err:
         fail(" ".join(str(err).split()))
     print(report.summary())

@@ -132,16 +132,23 @@ def write_criterion(case: Path, criterion: Mapping[str, float]) -> None:
 
 def converged_by(run: Any, rescue: Any, criterion_from: str) -> str | None:
     """What ended the run whose fields ``out`` holds as converged (None if it did not converge): the
-    criterion (``criterion_from``), or the case's own function object (foam_bridge.env.CASE_STOP)."""
+    controlled ``run`` (the criterion, ``criterion_from``; or the case's own function object,
+    foam_bridge.env.CASE_STOP), or the case's own run ``rescue`` that replaced it."""
     from foam_bridge.env import CASE_STOP
 
     if rescue is not None:
-        if not rescue.converged:
-            return None
-        return f"the case's function object {rescue.stopped_by} (runTimeControl)" if rescue.stopped_by \
-            else criterion_from
+        return own_converged_by(rescue, criterion_from)
     if run.outcome != "converged":
         return None
     if run.cause.startswith(CASE_STOP):
         return run.cause.replace(CASE_STOP, "the case's function object", 1)
     return f"{criterion_from}, confirmed" if run.record.get("confirmations") else criterion_from
+
+
+def own_converged_by(own: Any, criterion_from: str) -> str | None:
+    """What ended a run of the case with its own settings (jaxsimrl.solve.own.OwnRun) as converged."""
+    if not own.converged:
+        return None
+    if own.stopped_by:
+        return f"the case's function object {own.stopped_by} (runTimeControl)"
+    return criterion_from

@@ -41,10 +41,12 @@ class OwnRun:
 
 
 def run_own(source: Path, dest: Path, label: str, timeout_s: float, factors: Sequence[float] | None = None,
-            flat: bool = False, criterion: Mapping[str, float] | None = None) -> OwnRun:
+            flat: bool = False, criterion: Mapping[str, float] | None = None, start_time: int = 0) -> OwnRun:
     """Copy ``source`` to ``dest`` (mesh it if needed) and run simpleFoam once to its end; ``factors``:
     constant (alpha_u, alpha_p[, turbulence]) merged into its relaxationFactors (else its own);
-    ``criterion``: its SIMPLE.residualControl instead of its own (solve's ``--residual``)."""
+    ``criterion``: its SIMPLE.residualControl instead of its own (solve's ``--residual``);
+    ``start_time``: the time directory it starts from (``startFrom latestTime`` with only 0 and that one
+    copied), iterations counted from there."""
     from foam_bridge.logparse import LogParser
     from foam_bridge.openfoam import find_openfoam
     from foam_bridge.solver import run_to_end
@@ -52,7 +54,10 @@ def run_own(source: Path, dest: Path, label: str, timeout_s: float, factors: Seq
     from jaxsimrl.solve.criterion import write_criterion
 
     openfoam = find_openfoam()
-    copy_case(source, dest)
+    copy_case(source, dest, start_time=start_time)
+    if start_time:
+        with open(dest / "system" / "controlDict", "a") as out:
+            out.write("\n// ----- jaxsimrl solve: from the time copied -----\nstartFrom latestTime;\n")
     if not (dest / "constant" / "polyMesh" / "boundary").is_file():
         run_application(openfoam, "blockMesh", dest)
     if criterion is not None:
@@ -61,7 +66,7 @@ def run_own(source: Path, dest: Path, label: str, timeout_s: float, factors: Seq
         with open(dest / "system" / "fvSolution", "a") as out:
             out.write("\n// ----- constant factors of jaxsimrl solve --compare-constant -----\n"
                       + constant_relaxation(factors, flat))
-    parser = LogParser("", "")
+    parser = LogParser("", "", start=start_time)
     try:
         code, wall = run_to_end(dest, openfoam, parser, timeout_s)
     except Exception as err:  # noqa: BLE001 - a timeout or a broken case is this run's outcome

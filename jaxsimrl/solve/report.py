@@ -66,11 +66,11 @@ class SolveReport:
 
 
 def _verdict(result: dict[str, Any]) -> str:
-    """Converged and confirmed at a fixed relaxation, converged by the case's own function object (not a
-    residual criterion: nothing to confirm), or not converged."""
+    """Converged and confirmed at a fixed relaxation, converged (by the case's own function object, or
+    by the case's own run that replaced the controlled one: nothing was confirmed), or not converged."""
     if not result["converged"]:
         return "NOT converged"
-    return "converged" if "function object" in str(result.get("converged_by")) else "converged, confirmed"
+    return "converged, confirmed" if str(result.get("converged_by")).endswith("confirmed") else "converged"
 
 
 def _criterion_line(data: dict[str, Any]) -> list[str]:
