@@ -262,6 +262,13 @@ def test_from_time_picks_the_start_and_an_unknown_one_is_refused(tmp_path: Path)
     process = _cli(str(case), "--out", str(tmp_path / "bad"), "--from-time", "50", cwd=tmp_path)
     _, err = process.communicate(timeout=120)
     assert process.returncode == 2 and err.count("\n") == 1 and "no time directory 50" in err
+    control = case / "system" / "controlDict"
+    own = control.read_text()
+    control.write_text(own.replace("endTime         2000;", "endTime         100;"))  # no budget left
+    process = _cli(str(case), "--out", str(tmp_path / "bad"), cwd=tmp_path)
+    _, err = process.communicate(timeout=120)
+    assert process.returncode == 2 and err.count("\n") == 1 and "--max-iterations" in err
+    control.write_text(own)
     assert not (tmp_path / "bad").exists()
     out = tmp_path / "out"
     report = solve_case(case, out, from_time=0, step_timeout_s=120)

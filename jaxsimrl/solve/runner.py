@@ -135,6 +135,9 @@ def _solve(case: Path, out: Path, policy: Any, compare: bool, constant: Sequence
     trained = policy.policy.env_params if isinstance(policy, Controller) else policy_env_config(policy)
     start, started_from = begin
     settings = read_case_settings(case, start)
+    if start and settings.budget is None and max_iterations is None:
+        raise ValueError(f"case {case}: its endTime is not after the time {start} it starts from: give "
+                         f"--max-iterations N (or --from-time)")
     budget = max_iterations or settings.budget or DEFAULT_MAX_ITERATIONS
     cfg, checked = solve_config(case, trained, out / WORK_DIR, budget, confirm, *env, residual=residual,
                                 start_time=start)
