@@ -37,6 +37,7 @@ from foam_bridge.episode_case import (
     write_fixed_fv_solution,
 )
 from foam_bridge.errors import CaseError
+from foam_bridge.fields import time_directory
 from foam_bridge.logparse import LogParser
 from foam_bridge.openfoam import OpenFOAM
 from foam_bridge.template import TEMPLATE_DIR, copy_case, mesh_parameters, patch_names, run_application
@@ -54,7 +55,8 @@ def build_base_case(cfg: FoamEnvConfig, dest: Path, openfoam: OpenFOAM) -> CaseI
     """
     source = TEMPLATE_DIR if cfg.case_dir is None else Path(cfg.case_dir)
     check_case_files(source, cfg, need_mesh=False)
-    copy_case(source, dest)
+    copy_case(source, dest, start_time=cfg.start_time)
+    _drop_time_index(dest, cfg.start_time)
     if cfg.case_dir is None:
         with FoamFile(dest / "system" / "meshParameters") as params:
             params.update(mesh_parameters(cfg.mesh_scale, cfg.fixed_height))
@@ -136,10 +138,24 @@ def check_case(source: Path, cfg: FoamEnvConfig, openfoam: OpenFOAM, scratch: Pa
     return build_base_case(dataclasses.replace(cfg, case_dir=source), scratch / "checked", openfoam)
 
 
+def _drop_time_index(case: Path, start_time: int) -> None:
+    """Remove ``uniform/time`` from the start time directory of ``case`` (FoamEnvConfig.start_time: the
+    time index then counts from 0 there)."""
+    start = time_directory(case, start_time) if start_time else None
+    if start is not None:
+        (start / "uniform" / "time").unlink(missing_ok=True)
+
+
 def check_case_files(case: Path, cfg: FoamEnvConfig, need_mesh: bool) -> None:
     """One-line CaseError for the first missing file the env needs in ``case``."""
     if not case.is_dir():
         raise CaseError(f"case directory {case} does not exist")
+    start = time_directory(case, cfg.start_time) if cfg.start_time else None
+    if cfg.start_time and start is None:
+        raise CaseError(f"case {case}: no time directory {cfg.start_time:g} to start from")
+    for name in (cfg.velocity_field, cfg.pressure_field) if start is not None else ():
+        if not _exists(start / name):
+            raise CaseError(f"case {case}: missing {start.name}/{name} (the time it starts from)")
     needed = ["system/controlDict", "system/fvSolution", "system/fvSchemes",
               f"0/{cfg.velocity_field}", f"0/{cfg.pressure_field}",
               *(f"0/{name}" for name in touched_turbulence_fields(cfg))]
@@ -183,6 +199,9 @@ def _inspect_case(case: Path, cfg: FoamEnvConfig, openfoam: OpenFOAM) -> CaseInf
     if changes_inlet:
         _check_turbulence_inlets(case, cfg, openfoam)
     nu = None if cfg.turbulence_formula is None else _viscosity(case, openfoam)
+    start = time_directory(case, cfg.start_time) if cfg.start_time else None
+    if start is not None:  # the run starts from these fields
+        velocity = foamdict.expand(openfoam, case, f"{start.name}/{cfg.velocity_field}")
     cells_state = _mean_magnitude_squared(velocity.get("internalField", 0.0))
     return CaseInfo(speed, direction, inlet_state, cells_state, flat, nu,
                     own_factors=own_factors(relaxation, cfg))

@@ -103,6 +103,13 @@ class FoamEnvConfig:
         turbulence_fields: fields relaxed by ``relax_k_omega``, and set by ``inlet_turbulence``.
         simple_variant: "SIMPLE" (``consistent no``) or "SIMPLEC" (``consistent yes``). ``None``
             (default): SIMPLEC for the built-in case, the case's own choice for a user's case.
+        start_time: the time directory of a user's case its episodes start from (0: ``0/``; a later
+            one: a partly converged run goes on from its fields, as ``startFrom latestTime`` would).
+            Iterations K are counted from it (the solver's time is start_time + K; the pauses, the
+            budget, the writes and the confirmation's time directories follow), and the base case
+            keeps that directory, without its ``uniform/time`` (its time index then counts from 0 at
+            start_time, so that the writes every ``max_iterations`` or ``interval`` iterations of K
+            fall where they do from 0). An integer: the bridge runs deltaT 1.
 
     MDP:
         interval: SIMPLE iterations per env step (the paper: 100).
@@ -215,6 +222,7 @@ class FoamEnvConfig:
     observe_action: bool = False
     scale_free_state: bool = False
     observed_fields: tuple[str, ...] | None = None
+    start_time: int = 0
 
     def __post_init__(self) -> None:
         # the default box follows the action's size: [0.2, 0.95]^3 with alpha_t (see action_low)
@@ -269,6 +277,8 @@ class FoamEnvConfig:
                    and all(isinstance(name, str) and name != "" for name in names), "observed_fields",
                    names, "None or a non-empty tuple of distinct field names")
         _check(self.reward in REWARDS, "reward", self.reward, f"one of {REWARDS}")
+        _check(_is_int(self.start_time) and self.start_time >= 0 and not (self.start_time and self.builtin),
+               "start_time", self.start_time, "an integer >= 0 (0 for the built-in case)")
         for name in ("observe_progress", "observe_action", "scale_free_state"):
             _check(isinstance(getattr(self, name), bool), name, getattr(self, name), "true or false")
         _check(self.state_scale > 0, "state_scale", self.state_scale)

@@ -15,7 +15,9 @@ MDP (Pawar & Maulik, "Solver convergence acceleration"):
   ``cfg.reward`` "linear-iterations" or "solver-time", K is that cost instead (the linear solvers'
   inner iterations, the solver's CPU seconds, as the log counts them up to iteration K).
 - episode end: the solver's own ``SIMPLE.residualControl`` met (``converged``, terminated; with
-  ``confirm_alpha_u`` only once a check at that relaxation confirms it, foam_bridge.confirm), the
+  ``confirm_alpha_u`` only once a check at that relaxation confirms it, foam_bridge.confirm), the case's
+  own runTimeControl function object ending the run (``converged`` too, by the case's criterion: its
+  cause says which, CASE_STOP; no residual check, it did not stop on residuals), the
   ``max_iterations`` cap (outcome ``truncated``, but *terminated*: the cap is the task's budget, not a
   time limit, so the learner does not bootstrap past it and a capped run costs exactly its K, as much
   as a failure's default penalty charges; bootstrapping there would score reaching the cap below
@@ -84,6 +86,9 @@ from foam_bridge.spaces import BoxSpec, clip_to_box
 OUTCOMES = ("running", "converged", "truncated", "crashed", "diverged", "hung")
 #: Outcomes that are a failure of the solver (terminated, with the failure penalty).
 FAILURES = ("crashed", "diverged", "hung")
+#: The cause of a "converged" episode that the case's own function object ended (a runTimeControl with
+#: ``satisfiedAction end``: its criterion, e.g. a settled force coefficient), followed by its name.
+CASE_STOP = "ended by the case's own function object"
 #: Lock file held (fcntl.flock) by the FoamCaseEnv that owns an env directory.
 LOCK_FILE = ".foam_bridge.lock"
 #: The sub-directory of an env directory that holds the running episode's case (read by the episode pool).
@@ -94,8 +99,8 @@ EPISODE_DIR = "episode"
 #: the cache only spares repeats, e.g. an evaluation's fixed heights.
 BASE_CACHE = 4
 
-__all__ = ["FAILURES", "OUTCOMES", "FoamCaseEnv", "action_spec", "bounded_observation", "failure_reward",
-           "observation_spec"]
+__all__ = ["CASE_STOP", "FAILURES", "OUTCOMES", "FoamCaseEnv", "action_spec", "bounded_observation",
+           "failure_reward", "observation_spec"]
 
 
 class FoamCaseEnv:
@@ -119,8 +124,9 @@ class FoamCaseEnv:
     observation is the initial state (iteration 0) read from 0/U. The solver starts on the first step.
 
     ``step(action) -> (obs, reward, terminated, truncated, info)``; ``info`` has "iterations" (K),
-    "residuals" ({field: latest initial residual}), "outcome" (one of OUTCOMES), "cause" (failure text
-    or ""), "inlet_velocity", and "episode" (the episode record) on the step that ended the episode.
+    "residuals" ({field: latest initial residual}), "outcome" (one of OUTCOMES), "cause" (failure text,
+    CASE_STOP and the function object's name, or ""), "inlet_velocity", and "episode" (the episode
+    record) on the step that ended the episode.
     ``terminated`` is True on every episode end, the ``max_iterations`` cap included; ``truncated`` is
     always False (the env has no time limit). Stepping a finished episode raises ``RuntimeError`` (no
     auto-reset here).
@@ -190,7 +196,7 @@ class FoamCaseEnv:
         reference = max(inlet, cells, 0.0 if math.isnan(velocity) else velocity**2)
         state_limit = self.cfg.state_divergence_ratio * reference if reference > 0 else math.inf
         self._parser = LogParser(episode_case.CELLS_FUNCTION, episode_case.INLET_FUNCTION,
-                                 self.cfg.divergence_threshold, state_limit)
+                                 self.cfg.divergence_threshold, state_limit, start=self.cfg.start_time)
         self._iterations = self._target = 0
         self._restart_at: int | None = None  # a failed check: the solver goes on from these fields
         self._unconfirmed = False  # a check has failed: the boundaries are checked from now on
@@ -357,6 +363,8 @@ class FoamCaseEnv:
         criterion once a check has failed. A failed check at K < the step's boundary lets the solver go
         on from the fields of K with the step's factors, within this step.
         """
+        if outcome == "converged" and cause.startswith(CASE_STOP):
+            return outcome, cause, iterations  # the case's function object's criterion: no residual to check
         while True:
             at_boundary = outcome == "running" and self._unconfirmed and meets(self.cfg, self._residuals())
             if outcome != "converged" and not at_boundary:
@@ -400,6 +408,8 @@ class FoamCaseEnv:
         assert event in (EXITED, DIVERGED)
         if parser.converged_at is not None:
             return "converged", "", parser.converged_at
+        if parser.stopped_at is not None and code == 0:  # the case's own criterion, not residualControl's
+            return "converged", f"{CASE_STOP} {parser.stopped_by} (runTimeControl)", parser.stopped_at
         if code == 0 and parser.completed >= cfg.max_iterations:
             return "truncated", "", parser.completed
         detail = parser.error or "no error message"

@@ -53,7 +53,7 @@ import numpy as np
 from foamlib import FoamFile
 
 from foam_bridge.config import FOLLOW_ALPHA_U, K_OMEGA_ACTION, FoamEnvConfig, without_convergence_test
-from foam_bridge.fields import time_directories
+from foam_bridge.fields import time_directory
 from foam_bridge.logparse import solved_field_names
 from foam_bridge.template import KINEMATIC_VISCOSITY, TURBULENCE_INTENSITY, VISCOSITY_RATIO, inlet_turbulence
 
@@ -168,7 +168,7 @@ def write_check_case(case: Path, base: Path, dest: Path, cfg: FoamEnvConfig, tim
         shutil.copytree(case / part, dest / part, symlinks=True,
                         ignore=lambda directory, names: {n for n in names if n.startswith(("relaxation.",
                                                                                              "fvSolution."))})
-    (written,) = [path for value, path in time_directories(case) if value == time] or [case / str(time)]
+    written = time_directory(case, cfg.start_time + time) or case / str(cfg.start_time + time)
     shutil.copytree(written, dest / written.name)
     write_fixed_fv_solution(dest, base, cfg, text)
     write_control(dest, cfg, pause=False, functions=False, restart_at=time, end=time + 1)
@@ -286,10 +286,12 @@ def write_control(case: Path, cfg: FoamEnvConfig, pause: bool, functions: bool =
                    restart_at: int | None = None, end: int | None = None) -> None:
     """system/foamBridge/controlDict (run control, OptimisationSwitches, functions), #included by
     the case's controlDict. ``restart_at``: start from the latest time (that iteration), write the fields
-    at every boundary and pause only after it; ``end``: the last iteration (default max_iterations)."""
+    at every boundary and pause only after it; ``end``: the last iteration (default max_iterations).
+    Iterations count from ``cfg.start_time``: iteration K is the solver's time start_time + K."""
+    start = cfg.start_time
     settings = {
-        "startFrom": "startTime" if restart_at is None else "latestTime", "startTime": 0,
-        "stopAt": "endTime", "endTime": cfg.max_iterations if end is None else end, "deltaT": 1,
+        "startFrom": "startTime" if restart_at is None else "latestTime", "startTime": start,
+        "stopAt": "endTime", "endTime": start + (cfg.max_iterations if end is None else end), "deltaT": 1,
         "writeControl": "timeStep",
         "writeInterval": cfg.max_iterations if restart_at is None else cfg.interval,
         "runTimeModifiable": True,
@@ -323,8 +325,8 @@ def _function_objects(cfg: FoamEnvConfig, case: Path, pause: bool, after: int = 
                          "surfaceFormat": "none", **every_iteration},
     }
     boundaries = [k for k in pause_boundaries(cfg)[1:] if k > after]
-    if pause and boundaries:
-        copies = [[k, f'"$FOAM_CASE/system/{BRIDGE_DIR}/{_fv_solution_copy(case, k).name}"']
+    if pause and boundaries:  # at the solver's times: start_time + K
+        copies = [[cfg.start_time + k, f'"$FOAM_CASE/system/{BRIDGE_DIR}/{_fv_solution_copy(case, k).name}"']
                   for k in boundaries]
         functions[PAUSE_FUNCTION] = {
             "type": "timeActivatedFileUpdate", "libs": ["libutilityFunctionObjects.so"],

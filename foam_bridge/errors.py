@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-__all__ = ["CaseError", "ClusterError", "OpenFOAMNotFoundError", "PoolLostError", "SolverFailure"]
+__all__ = ["CaseError", "ClusterError", "NoResidualControl", "OpenFOAMNotFoundError", "PoolLostError",
+           "SolverFailure"]
 
 
 class OpenFOAMNotFoundError(RuntimeError):
@@ -11,6 +12,15 @@ class OpenFOAMNotFoundError(RuntimeError):
 
 class CaseError(ValueError):
     """A case directory is unusable (missing file, unknown patch or field, unreadable dictionary)."""
+
+
+class NoResidualControl(CaseError):
+    """A case whose SIMPLE has no residualControl, when its criterion is wanted (``where``: its fvSolution).
+    Its own class so that each command can name its own way to give a criterion."""
+
+    def __init__(self, message: str, where: object) -> None:
+        super().__init__(message)
+        self.where = where
 
 
 class SolverFailure(RuntimeError):

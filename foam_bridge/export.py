@@ -6,7 +6,8 @@ user's controlDict and fvSolution, FIFOs (``system/foamBridge/relaxation.<K>``) 
 fvSolution and a symlinked mesh. :func:`export_case` writes what a user expects instead: their own
 case as they gave it (``system/``, ``constant/``, ``0/``, scripts; never re-serialised, copied from the
 source), the mesh as a real directory, the run's last time directory (its fields), its solver log and
-what the case's own function objects wrote (``postProcessing/``).
+what the case's own function objects wrote (``postProcessing/``). A run restarted from a later time
+(FoamEnvConfig.start_time) keeps that time directory too, as the user gave it.
 Nothing of the bridge remains, so ``foamDictionary``, ``paraFoam`` and a ``simpleFoam`` restart work as
 on any case.
 """
@@ -28,9 +29,11 @@ LOG_NAME = "log.simpleFoam"
 POST_PROCESSING = "postProcessing"
 
 
-def export_case(episode: Path, source: Path, out: Path, log: Path | None = None) -> str | None:
+def export_case(episode: Path, source: Path, out: Path, log: Path | None = None, start_time: float = 0
+                ) -> str | None:
     """Write into ``out`` the user's case ``source`` with the episode's results; returns the name of the
-    time directory copied (None if the episode wrote no time after 0).
+    time directory copied (None if the episode wrote no time after ``start_time``, the time the run
+    started from: that one is copied from ``source``).
 
     ``out`` may exist (its other files stay; the case's entries are replaced). ``log``: the solver log to
     keep (default the episode's). The copy goes to a sibling temporary directory first, then each entry
@@ -38,12 +41,12 @@ def export_case(episode: Path, source: Path, out: Path, log: Path | None = None)
     """
     out.mkdir(parents=True, exist_ok=True)
     staging = out.parent / f".{out.name}.export"
-    copy_case(Path(source), staging, mesh=True)
+    copy_case(Path(source), staging, mesh=True, start_time=start_time)
     mesh = staging / "constant" / "polyMesh"
     if not (mesh / "boundary").is_file():  # meshed by the bridge (blockMesh): the run's own mesh
         shutil.rmtree(mesh, ignore_errors=True)
         shutil.copytree((episode / "constant" / "polyMesh").resolve(), mesh)
-    latest = _latest_time(episode)
+    latest = _latest_time(episode, start_time)
     if latest is not None:
         shutil.copytree(latest, staging / latest.name)
         for leftover in (staging / latest.name).glob(f"{STATE_FIELD}*"):
@@ -62,7 +65,7 @@ def export_case(episode: Path, source: Path, out: Path, log: Path | None = None)
     return None if latest is None else latest.name
 
 
-def _latest_time(case: Path) -> Path | None:
-    """The case's latest time directory after 0, None if there is none."""
-    times = [path for value, path in time_directories(case) if value > 0]
+def _latest_time(case: Path, after: float = 0) -> Path | None:
+    """The case's latest time directory after ``after``, None if there is none."""
+    times = [path for value, path in time_directories(case) if value > after]
     return times[-1] if times else None

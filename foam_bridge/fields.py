@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["final_field", "relative_l2", "time_directories"]
+__all__ = ["final_field", "relative_l2", "time_directories", "time_directory"]
 
 
 def time_directories(case: Path) -> list[tuple[float, Path]]:
@@ -32,6 +32,11 @@ def time_directories(case: Path) -> list[tuple[float, Path]]:
         if path.is_dir():
             found.append((value, path))
     return sorted(found)
+
+
+def time_directory(case: Path, value: float) -> Path | None:
+    """The case's time directory of time ``value`` (``100`` or ``100.0`` alike), None if it has none."""
+    return next((path for time, path in time_directories(case) if time == value), None)
 
 
 def final_field(case: Path, name: str = "U") -> tuple[float, np.ndarray] | None:

@@ -15,6 +15,9 @@ What it recognises (OpenFOAM v1912 wording):
 - ``volFieldValue <cells> write:`` / ``surfaceFieldValue <inlet> write:`` followed by
   ``    average(...) of <field> = 1953.64``: the two terms of the paper's state.
 - ``SIMPLE solution converged in 418 iterations``: simpleFoam's own residualControl was met.
+- ``runTimeControl <name> output:`` ... ``    Stopping calculation``: the case's own runTimeControl
+  function object (``satisfiedAction end``) ended the run after the iteration just completed; printed
+  whatever its ``log`` setting, then ``    Writing fields`` (the fields of that iteration are written).
 - ``Re-reading object fvSolution from file ...``: printed (and flushed) before every re-read of
   fvSolution, i.e. before the solver opens the relaxation FIFO again; counted in ``fvsolution_rereads``.
 - ``--> FOAM FATAL (IO) ERROR`` (+ its message line), the sigFpe/sigSegv stack traces: crash causes.
@@ -41,6 +44,8 @@ _EXECUTION = re.compile(r"^ExecutionTime = (\S+)")
 _FUNCTION_HEADER = re.compile(r"^(?:volFieldValue|surfaceFieldValue) (\S+) write:")
 _FUNCTION_VALUE = re.compile(r"^\s+\w+\(.*\) of \S+ = (\S+)\s*$")
 _CONVERGED = re.compile(r"solution converged in (\S+) iterations")
+_RUN_TIME_CONTROL = re.compile(r"^runTimeControl (\S+) output:")
+_STOPPING = re.compile(r"^\s+Stopping calculation\s*$")
 _REREAD = re.compile(r"Re-reading object fvSolution\b")
 #: Crash markers -> the cause recorded (a FOAM FATAL error also records its next message line).
 _ERRORS = {"sigFpe::sigHandler": "floating point exception (SIGFPE)",
@@ -114,7 +119,10 @@ class LogParser:
     ``linear_iterations`` (inner iterations of every linear solve so far, all fields), ``execution_time``
     (the solver's CPU seconds at the last finished iteration, summed over the processes of a run
     restarted from its fields: their counts start from 0 again),
-    ``converged_at``, ``fvsolution_rereads``, ``error`` (first crash line), ``diverged`` (cause text)
+    ``converged_at``, ``stopped_at`` and ``stopped_by`` (the iteration after which the case's own
+    runTimeControl ended the run, and its name), ``fvsolution_rereads``, ``error`` (first crash line),
+    ``diverged`` (cause text). Iterations are counted from ``start`` (a run restarted from that time
+    directory: its ``Time = start + K`` is iteration K).
     and ``failed_at`` (the iteration in which divergence was detected; the parser ignores all output
     after that line).
     """
@@ -133,14 +141,18 @@ class LogParser:
     inlet_state: float | None = None
     state_iteration: int = 0
     converged_at: int | None = None
+    stopped_at: int | None = None
+    stopped_by: str | None = None
     fvsolution_rereads: int = 0
     error: str | None = None
     diverged: str | None = None
     failed_at: int | None = None
+    start: int = 0
     _current: dict[str, float] = field(default_factory=dict)
     _clock: CpuClock = field(default_factory=CpuClock)
     _pending_function: str | None = None
     _pending_error: bool = False
+    _run_time_control: str | None = None
     _partial: str = ""
 
     def feed(self, chunk: bytes | str) -> None:
@@ -164,7 +176,7 @@ class LogParser:
             self.error = f"{self.error}: {line.strip()}"
             self._pending_error = False
         if match := _TIME.match(line):
-            self.iteration = int(round(_to_float(match.group(1))))
+            self.iteration = int(round(_to_float(match.group(1)))) - self.start
             self._current = {}
         elif match := _SOLVE.search(line):
             self.linear_iterations += int(match.group(4) or 0)
@@ -184,7 +196,11 @@ class LogParser:
         elif _REREAD.search(line):
             self.fvsolution_rereads += 1
         elif match := _CONVERGED.search(line):
-            self.converged_at = int(round(_to_float(match.group(1))))
+            self.converged_at = int(round(_to_float(match.group(1)))) - self.start  # it prints the time
+        elif match := _RUN_TIME_CONTROL.match(line):
+            self._run_time_control = match.group(1)
+        elif _STOPPING.match(line) and self._run_time_control is not None:
+            self.stopped_at, self.stopped_by = self.completed, self._run_time_control
         elif self.error is None:
             self._error(line)
 

@@ -74,18 +74,19 @@ def mesh_builtin(cfg: FoamEnvConfig, dest: Path, openfoam: OpenFOAM, step_height
     run_application(openfoam, "blockMesh", dest)
 
 
-def copy_case(source: Path, dest: Path, mesh: bool = True) -> None:
-    """``source`` -> ``dest`` without results (time directories but 0, logs, processor*; the mesh too
-    unless ``mesh``), with the dictionaries of 0/ and system/ uncompressed (the bridge appends to some
-    of them)."""
+def copy_case(source: Path, dest: Path, mesh: bool = True, start_time: float = 0) -> None:
+    """``source`` -> ``dest`` without results (time directories but 0 and ``start_time``'s, the one a
+    run starts from; logs, processor*; the mesh too unless ``mesh``), with the dictionaries of 0/ and
+    system/ uncompressed (the bridge appends to some of them)."""
     if dest.exists():
         shutil.rmtree(dest)
     patterns = shutil.ignore_patterns(*_NOT_COPIED, *(() if mesh else ("polyMesh",)))
 
     def ignore(directory: str, names: list[str]) -> set[str]:
         skipped = set(patterns(directory, names))
-        if Path(directory) == source:  # results of earlier runs: every time directory but 0
-            skipped |= {name for name in names if name != "0" and _is_number(name)}
+        if Path(directory) == source:  # results of earlier runs: every time directory but 0 and the start
+            skipped |= {name for name in names if name != "0" and _is_number(name)
+                        and float(name) != start_time}
         return skipped
 
     shutil.copytree(source, dest, symlinks=False, ignore=ignore)

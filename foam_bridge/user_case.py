@@ -31,7 +31,7 @@ from foam_bridge import foamdict
 from foam_bridge.base_case import check_case, check_case_files
 from foam_bridge.config import FoamEnvConfig
 from foam_bridge.episode_case import CaseInfo
-from foam_bridge.errors import CaseError
+from foam_bridge.errors import CaseError, NoResidualControl
 from foam_bridge.logparse import solved_field_names
 from foam_bridge.openfoam import OpenFOAM, find_openfoam
 
@@ -81,8 +81,9 @@ def _own_criterion(simple: dict[str, Any], solved: tuple[str, ...], where: Path)
     only a regular-expression key names."""
     control = simple.get("residualControl")
     if not isinstance(control, dict) or not control:
-        raise CaseError(f"{where}: SIMPLE has no residualControl, so its runs never converge; add one, or "
-                        'set a criterion in --config: {"foam": {"convergence": {"U": 1e-3, "p": 1e-2}}}')
+        raise NoResidualControl(f"{where}: SIMPLE has no residualControl, so its runs never converge; add "
+                                'one, or set a criterion in --config: {"foam": {"convergence": {"U": 1e-3, '
+                                '"p": 1e-2}}}', where)
     criterion = {key: _threshold(value, key, where) for key, value in control.items() if not _is_pattern(key)}
     for name in solved_field_names(solved):
         if name not in criterion:

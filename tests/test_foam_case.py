@@ -167,3 +167,22 @@ def test_observation_is_always_finite_float32_inside_the_documented_box() -> Non
     spec = observation_spec(FoamEnvConfig(residual_features=1))
     assert spec.shape == (5,) and spec.low[0] == 0.0
     assert np.all(spec.low[1:] == -b) and np.all(spec.high == b) and np.all(np.isfinite(spec.high))
+
+
+def test_a_start_time_keeps_that_directory_and_moves_the_run_and_its_pauses(tmp_path: Path) -> None:
+    source = tmp_path / "case"
+    for name in ("0", "50", "100", "system"):
+        (source / name).mkdir(parents=True)
+    (source / "100" / "U").write_text("")
+    template.copy_case(source, tmp_path / "copy", start_time=100)
+    assert sorted(path.name for path in (tmp_path / "copy").iterdir()) == ["0", "100", "system"]
+    with pytest.raises(ValueError, match="start_time"):
+        FoamEnvConfig(start_time=100).validate()  # the built-in case has only 0
+    cfg = FoamEnvConfig(case_dir=source, start_time=100, max_iterations=300, interval=100).validate()
+    (source / "system" / "controlDict").write_text("")
+    (source / "system" / episode_case.BRIDGE_DIR).mkdir()
+    episode_case.write_control(source, cfg, pause=True)
+    control = FoamFile(source / "system" / episode_case.CONTROL_INCLUDE)
+    assert (control["startTime"], control["endTime"]) == (100, 400)
+    pause = control["functions"][episode_case.PAUSE_FUNCTION]["timeVsFile"]
+    assert [row[0] for row in pause] == [200, 300]  # after iterations 100 and 200 of the run

@@ -186,3 +186,41 @@ def test_state_limit_is_configurable() -> None:
     default = _parser()
     default.feed(text)
     assert default.diverged is None and default.inlet_state == 3e6
+
+
+#: The end of a simpleFoam v1912 run that the case's runTimeControl (satisfiedAction end) stopped, verbatim.
+RUN_TIME_CONTROL_STOP = """Time = 327
+
+smoothSolver:  Solving for Ux, Initial residual = 3.87419e-05, Final residual = 9.25146e-06, No Iterations 3
+GAMG:  Solving for p, Initial residual = 0.000287965, Final residual = 2.35456e-05, No Iterations 4
+ExecutionTime = 12.14 s  ClockTime = 14 s
+
+runTimeControl stopWhenSettled output:
+    average: settled averages:
+        volAverage(k)Mean: 1.6761, delta: 0.000979387
+
+    average: settled condition satisfied
+    Stopping calculation
+    Writing fields
+
+
+End
+"""
+
+
+def test_a_run_time_control_stop_is_the_case_own_end() -> None:
+    parser = LogParser("cells", "inlet")
+    parser.feed(RUN_TIME_CONTROL_STOP)
+    parser.finish()
+    assert (parser.stopped_at, parser.stopped_by, parser.converged_at) == (327, "stopWhenSettled", None)
+    unmet = LogParser("cells", "inlet")
+    unmet.feed(RUN_TIME_CONTROL_STOP.replace("    Stopping calculation\n", "    Conditions not met\n"))
+    assert unmet.stopped_at is None and unmet.error is None
+
+
+def test_a_run_restarted_from_a_later_time_counts_its_iterations_from_there() -> None:
+    parser = LogParser("cells", "inlet", start=100)
+    parser.feed("Time = 101\n\nsmoothSolver:  Solving for Ux, Initial residual = 0.01, "
+                "Final residual = 0.001, No Iterations 2\nExecutionTime = 0.1 s  ClockTime = 0 s\n\n"
+                "SIMPLE solution converged in 101 iterations\n")
+    assert (parser.completed, parser.converged_at, parser.history) == (1, 1, [{"Ux": 0.01}])

@@ -24,11 +24,14 @@ from foamlib import FoamFile
 from slow_case import STOP_LIMIT_S, iterations_in, seconds_until, slow_pitz_daily, wait_until
 
 from foam_bridge import case as foam_case
+from foam_bridge import foamdict
 from foam_bridge.config import FoamEnvConfig
-from foam_bridge.openfoam import BRIDGE_MARK
+from foam_bridge.logparse import LogParser
+from foam_bridge.openfoam import BRIDGE_MARK, find_openfoam
 from jaxsimrl import load_policy
 from jaxsimrl.solve import DEFAULT_CONTROLLER, Controller, solve_case
 from jaxsimrl.solve.controller import policy_env_config
+from jaxsimrl.solve.criterion import parse_residual, resolve
 from jaxsimrl.solve.settings import solve_config
 from jaxsimrl.solve.watchdog import Watchdog
 
@@ -101,6 +104,180 @@ def _check_normal_case(out: Path, time_name: str) -> None:
     assert log.returncode == 0, log.stdout[-2000:]
     assert f"Time = {int(time_name) + 1}\n" in log.stdout  # it went on from the converged fields
     assert "SIMPLE solution converged" in log.stdout
+
+
+def _without_residual_control(case: Path) -> Path:
+    """``case`` with its SIMPLE residualControl block removed (pitzDaily's holds no nested braces)."""
+    solution = case / "system" / "fvSolution"
+    text = solution.read_text()
+    start = text.index("    residualControl")
+    solution.write_text(text[:start] + text[text.index("}", start) + 1:])
+    return case
+
+
+#: A criterion of the case's own: stop once the mean k over the cells settles (runTimeControl, its
+#: satisfiedAction end); on pitzDaily with its own settings it stops at iteration ~414.
+STOP_WHEN_SETTLED = """
+cellsK
+{
+    type volFieldValue; libs (fieldFunctionObjects); fields (k); operation volAverage; regionType all;
+    writeControl timeStep; writeInterval 1; writeFields false; log false;
+}
+stopWhenSettled
+{
+    type runTimeControl; libs (utilityFunctionObjects); satisfiedAction end;
+    conditions
+    {
+        settled
+        {
+            type average; functionObject cellsK; fields (volAverage(k)); tolerance 2e-4; window 50;
+            windowType exact;
+        }
+    }
+}
+"""
+
+
+def _settling_pitz_daily(tmp_path: Path) -> Path:
+    """pitzDaily without residualControl, ended by a runTimeControl once its mean k settles."""
+    case = _without_residual_control(_pitz_daily(tmp_path))
+    (case / "system" / "stopWhenSettled").write_text(STOP_WHEN_SETTLED)
+    control = case / "system" / "controlDict"
+    control.write_text(control.read_text().replace("#includeFunc streamlines", '#include "stopWhenSettled"'))
+    return case
+
+
+def _last_time(log: str) -> int:
+    return int([line for line in log.splitlines() if line.startswith("Time = ")][-1].split()[-1])
+
+
+def test_residual_is_a_threshold_or_named_fields() -> None:
+    assert parse_residual("1e-4") == 1e-4
+    assert parse_residual("p=1e-3,U=1e-4") == {"p": 1e-3, "U": 1e-4}
+    for bad in ("0", "-1", "nan", "p=", "p=1e-3,p=1e-4", "=1e-3", "p=x"):
+        with pytest.raises(ValueError, match="--residual"):
+            parse_residual(bad)
+    assert resolve(1e-4, ["U", "p", "k"], Path("c")) == {"U": 1e-4, "p": 1e-4, "k": 1e-4}
+    with pytest.raises(ValueError, match="q, which case c does not solve"):
+        resolve("q=1e-3", ["U", "p"], Path("c"))
+
+
+def test_a_case_without_residual_control_is_solved_with_residual(tmp_path: Path) -> None:
+    case = _without_residual_control(_pitz_daily(tmp_path))
+    process = _cli(str(case), "--out", str(tmp_path / "refused"), cwd=tmp_path)
+    _, err = process.communicate(timeout=180)
+    assert process.returncode == 2 and err.count("\n") == 1 and "--residual" in err
+    process = _cli(str(case), "--out", str(tmp_path / "unknown"), "--residual", "U=1e-3,omega=1e-3",
+                   cwd=tmp_path)
+    _, err = process.communicate(timeout=180)
+    assert process.returncode == 2 and err.count("\n") == 1 and "omega, which case" in err
+    assert not (tmp_path / "refused").exists() and not (tmp_path / "unknown").exists()
+    out = tmp_path / "out"  # pitzDaily's own thresholds, given on the command line
+    process = _cli(str(case), "--out", str(out), "--residual", "p=1e-2,U=1e-3,k=1e-3,epsilon=1e-3",
+                   "--compare", cwd=tmp_path)
+    printed, err = process.communicate(timeout=600)
+    assert process.returncode == 0, err
+    criterion = {"p": 1e-2, "U": 1e-3, "k": 1e-3, "epsilon": 1e-3}
+    assert f"criterion {criterion} (--residual)" in printed.splitlines()[0]
+    data = json.loads((out / "solve.json").read_text())
+    assert data["settings"]["criterion"] == criterion and data["settings"]["criterion_from"] == "--residual"
+    assert data["result"]["converged"] and data["result"]["converged_by"] == "--residual, confirmed"
+    own = data["compare"]["own"]  # the same criterion, or the runs are not comparable
+    assert own["converged"] and own["converged_by"] == "--residual"
+    for where in (out, out / "compare" / "own"):  # as OpenFOAM reads them
+        solution = foamdict.expand(find_openfoam(), where, "system/fvSolution")
+        assert solution["SIMPLE"]["residualControl"] == criterion
+    _check_normal_case(out, data["result"]["time_directory"])  # its restart stops at once, converged
+
+
+def test_a_run_time_control_stop_is_converged_by_the_case_criterion(tmp_path: Path) -> None:
+    case = _settling_pitz_daily(tmp_path)
+    out = tmp_path / "out"
+    report = solve_case(case, out, compare=True, step_timeout_s=120)
+    data = json.loads((out / "solve.json").read_text())
+    result, own = data["result"], data["compare"]["own"]
+    assert report.converged and result["outcome"] == "converged" and not data["fallback"]
+    assert data["settings"]["criterion"] == {} and "runTimeControl" in data["settings"]["criterion_from"]
+    assert result["converged_by"] == "the case's function object stopWhenSettled (runTimeControl)"
+    assert not data["confirmations"]  # no residual criterion to confirm
+    log = (out / "log.simpleFoam").read_text()  # the controlled run stopped where its function object said
+    assert "    Stopping calculation" in log and _last_time(log) == result["iterations"]
+    assert result["time_directory"] == str(result["iterations"])
+    assert (out / result["time_directory"] / "U").is_file()
+    own_log = (out / "compare" / "own" / "log.simpleFoam").read_text()  # the plain simpleFoam run
+    assert own["converged"] and "    Stopping calculation" in own_log
+    assert own["iterations"] == _last_time(own_log)
+    assert own["iterations"] < 2000  # it stopped there, not at its endTime
+
+
+def _partly_run_pitz_daily(tmp_path: Path) -> tuple[Path, str]:
+    """pitzDaily run for 100 iterations by plain simpleFoam (so it has 0/ and 100/; its endTime back at
+    2000), and that run's log."""
+    case = _pitz_daily(tmp_path)
+    control = case / "system" / "controlDict"
+    own = control.read_text()
+    control.write_text(own.replace("endTime         2000;", "endTime         100;"))
+    subprocess.run(["blockMesh"], cwd=case, env=FOAM_ENV, capture_output=True, timeout=60, check=True)
+    log = subprocess.run(["simpleFoam"], cwd=case, env=FOAM_ENV, capture_output=True, text=True, timeout=300,
+                         check=True).stdout
+    control.write_text(own)
+    assert (case / "100" / "U").is_file()
+    return case, log
+
+
+def _parsed(log: str) -> LogParser:
+    parser = LogParser("", "")
+    parser.feed(log)
+    parser.finish()
+    return parser
+
+
+def _first_time(log: str) -> int:
+    return int(next(line for line in log.splitlines() if line.startswith("Time = ")).split()[-1])
+
+
+def test_a_case_with_a_later_time_goes_on_from_it(tmp_path: Path) -> None:
+    case, first = _partly_run_pitz_daily(tmp_path)
+    out = tmp_path / "out"
+    report = solve_case(case, out, compare=True, step_timeout_s=120)
+    data = json.loads((out / "solve.json").read_text())
+    result, own = data["result"], data["compare"]["own"]
+    assert report.converged and data["settings"]["started_from"] == "time 100 (latest)"
+    assert "started from time 100 (latest)" in report.summary()
+    assert data["settings"]["max_iterations"] == 1900  # endTime 2000 minus the start
+    log = (out / "log.simpleFoam").read_text()
+    assert _first_time(log) == 101 and result["time_directory"] == str(100 + result["iterations"])
+    assert _last_time(log) == 100 + result["iterations"]
+    # it went on: its first residuals are those where the first run stopped, not those of a start from 0
+    before, after = _parsed(first).history, _parsed(log).history
+    assert before[0]["Ux"] == 1.0 and after[0]["Ux"] < 10 * before[-1]["Ux"] < 0.1
+    assert (out / "100" / "U").is_file() and (out / result["time_directory"] / "U").is_file()
+    own_log = (out / "compare" / "own" / "log.simpleFoam").read_text()  # the own run goes on from 100 too
+    assert own["converged"] and _first_time(own_log) == 101 and _last_time(own_log) == 100 + own["iterations"]
+    _check_normal_case(out, result["time_directory"])
+
+
+def test_from_time_picks_the_start_and_an_unknown_one_is_refused(tmp_path: Path) -> None:
+    case, first = _partly_run_pitz_daily(tmp_path)
+    process = _cli(str(case), "--out", str(tmp_path / "bad"), "--from-time", "50", cwd=tmp_path)
+    _, err = process.communicate(timeout=120)
+    assert process.returncode == 2 and err.count("\n") == 1 and "no time directory 50" in err
+    control = case / "system" / "controlDict"
+    own = control.read_text()
+    control.write_text(own.replace("endTime         2000;", "endTime         100;"))  # no budget left
+    process = _cli(str(case), "--out", str(tmp_path / "bad"), cwd=tmp_path)
+    _, err = process.communicate(timeout=120)
+    assert process.returncode == 2 and err.count("\n") == 1 and "--max-iterations" in err
+    control.write_text(own)
+    assert not (tmp_path / "bad").exists()
+    out = tmp_path / "out"
+    report = solve_case(case, out, from_time=0, step_timeout_s=120)
+    data = json.loads((out / "solve.json").read_text())
+    assert report.converged and data["settings"]["started_from"] == "time 0 (--from-time)"
+    log = (out / "log.simpleFoam").read_text()  # it re-started: the first iteration of the first run
+    assert _first_time(log) == 1 and _parsed(log).history[0]["Ux"] == _parsed(first).history[0]["Ux"] == 1.0
+    assert data["settings"]["max_iterations"] == 2000 and not (out / "100").exists()
+    assert data["result"]["time_directory"] == str(data["result"]["iterations"])
 
 
 def test_watchdog_fires_on_growth_and_on_stall_only() -> None:
@@ -242,6 +419,7 @@ def test_a_case_it_cannot_drive_is_one_line_and_exit_2(tmp_path: Path) -> None:
     process = _cli(str(case), "--out", str(tmp_path / "out"), cwd=tmp_path)
     _, err = process.communicate(timeout=180)
     assert process.returncode == 2 and err.count("\n") == 1 and "residualControl" in err
+    assert "--residual" in err
     assert not (tmp_path / "out").exists()  # nothing claimed, nothing left
     (case / "processor0").mkdir()
     process = _cli(str(case), "--out", str(tmp_path / "out2"), cwd=tmp_path)

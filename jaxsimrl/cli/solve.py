@@ -27,7 +27,8 @@ def register(subparsers: Any) -> None:
         description="Copy CASE to --out and run it to convergence with a controller setting the relaxation "
         "factors (default: the controller shipped with jaxsimrl), never worse than the case's own settings: "
         "a watchdog hands a stalling or growing run to the case's own factors, and a failed run is replaced "
-        "by the case's own run. Convergence is the case's residualControl, confirmed at a fixed relaxation.")
+        "by the case's own run. Convergence is the case's residualControl (or --residual), confirmed at a "
+        "fixed relaxation, or the case's own function objects ending the run (runTimeControl).")
     parser.add_argument("case", metavar="CASE", type=Path,
                         help="a simpleFoam case directory (never modified)")
     parser.add_argument("--out", type=Path, metavar="DIR", help="output directory, new or empty "
@@ -42,8 +43,16 @@ def register(subparsers: Any) -> None:
                         "in parallel, and report the savings")
     parser.add_argument("--compare-constant", type=relaxation_factor, nargs="+", metavar="F",
                         help="also run the case with constant factors U P [TURBULENCE]")
+    parser.add_argument("--residual", type=residual_spec, metavar="SPEC",
+                        help="the convergence criterion instead of the case's SIMPLE residualControl (needed "
+                        "when it has none): 1e-4 for every solved field, or p=1e-3,U=1e-4 for those fields; "
+                        "used by the --compare runs too and written into --out's fvSolution")
+    parser.add_argument("--from-time", type=time_value, metavar="T", dest="from_time",
+                        help="the case's time directory to start from (default: its latest, as startFrom "
+                        "latestTime: a partly converged run goes on from its fields; 0 starts over)")
     parser.add_argument("--max-iterations", type=positive_int, metavar="N",
-                        help="iteration budget (default: the case's controlDict endTime / deltaT)")
+                        help="iteration budget (default: the case's controlDict endTime minus the start "
+                        "time, / deltaT)")
     parser.add_argument("--confirm-alpha-u", type=check_factor, default=0.9, metavar="A",
                         dest="confirm_alpha_u", help="the convergence check relaxation cannot move: one "
                         "SIMPLE iteration at alpha_u = A from the converged fields (default 0.9)")
@@ -54,6 +63,27 @@ def register(subparsers: Any) -> None:
                         help="the patch whose mean |U|^2 the controller observes (default: inlet)")
     parser.add_argument("--quiet", action="store_true", help="print only the summary")
     parser.set_defaults(func=run_solve)
+
+
+def residual_spec(text: str) -> Any:
+    """argparse type of --residual (jaxsimrl.solve.criterion.parse_residual)."""
+    from jaxsimrl.solve.criterion import parse_residual
+
+    try:
+        return parse_residual(text)
+    except ValueError as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
+
+
+def time_value(text: str) -> float:
+    """argparse type of --from-time: a time >= 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a time >= 0, got {text!r}") from None
+    if not 0 <= value < float("inf"):
+        raise argparse.ArgumentTypeError(f"expected a time >= 0, got {text!r}")
+    return value
 
 
 def compilation_cache() -> None:
@@ -89,7 +119,8 @@ def run_solve(args: argparse.Namespace) -> int:
         report = solve_case(args.case, out, policy=args.policy, compare=args.compare,
                             compare_constant=args.compare_constant, max_iterations=args.max_iterations,
                             confirm_alpha_u=args.confirm_alpha_u, step_timeout_s=args.step_timeout,
-                            inlet_patch=args.inlet_patch, say=say,
+                            inlet_patch=args.inlet_patch, say=say, residual=args.residual,
+                            from_time=args.from_time,
                             rule=None if args.controller == "learned" else args.controller)
     except (ValueError, CaseError, OpenFOAMNotFoundError) as err:
         fail(" ".join(str(err).split()))

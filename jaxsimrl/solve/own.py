@@ -13,7 +13,7 @@ import multiprocessing as mp
 import os
 import signal
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -24,9 +24,9 @@ CONSTANT_FIELDS = ("U", "p", "turbulence")
 
 @dataclass(frozen=True)
 class OwnRun:
-    """One plain run: its case directory, whether simpleFoam's own residualControl stopped it, the
-    iterations, simpleFoam's wall and CPU seconds, the exit code, the per-iteration residuals, and an
-    error text (empty when it ran)."""
+    """One plain run: its case directory, whether it converged (simpleFoam's residualControl stopped it,
+    or the case's own runTimeControl, named in ``stopped_by``), the iterations, simpleFoam's wall and
+    CPU seconds, the exit code, the per-iteration residuals, and an error text (empty when it ran)."""
 
     case: str
     label: str
@@ -37,35 +37,46 @@ class OwnRun:
     exit_code: int | None
     history: list[dict[str, float]] = field(default_factory=list)
     error: str = ""
+    stopped_by: str | None = None
 
 
 def run_own(source: Path, dest: Path, label: str, timeout_s: float, factors: Sequence[float] | None = None,
-            flat: bool = False) -> OwnRun:
+            flat: bool = False, criterion: Mapping[str, float] | None = None, start_time: int = 0) -> OwnRun:
     """Copy ``source`` to ``dest`` (mesh it if needed) and run simpleFoam once to its end; ``factors``:
-    constant (alpha_u, alpha_p[, turbulence]) merged into its relaxationFactors (else its own)."""
+    constant (alpha_u, alpha_p[, turbulence]) merged into its relaxationFactors (else its own);
+    ``criterion``: its SIMPLE.residualControl instead of its own (solve's ``--residual``);
+    ``start_time``: the time directory it starts from (``startFrom latestTime`` with only 0 and that one
+    copied), iterations counted from there."""
     from foam_bridge.logparse import LogParser
     from foam_bridge.openfoam import find_openfoam
     from foam_bridge.solver import run_to_end
     from foam_bridge.template import copy_case, run_application
+    from jaxsimrl.solve.criterion import write_criterion
 
     openfoam = find_openfoam()
-    copy_case(source, dest)
+    copy_case(source, dest, start_time=start_time)
+    if start_time:
+        with open(dest / "system" / "controlDict", "a") as out:
+            out.write("\n// ----- jaxsimrl solve: from the time copied -----\nstartFrom latestTime;\n")
     if not (dest / "constant" / "polyMesh" / "boundary").is_file():
         run_application(openfoam, "blockMesh", dest)
+    if criterion is not None:
+        write_criterion(dest, criterion)
     if factors is not None:
         with open(dest / "system" / "fvSolution", "a") as out:
             out.write("\n// ----- constant factors of jaxsimrl solve --compare-constant -----\n"
                       + constant_relaxation(factors, flat))
-    parser = LogParser("", "")
+    parser = LogParser("", "", start=start_time)
     try:
         code, wall = run_to_end(dest, openfoam, parser, timeout_s)
     except Exception as err:  # noqa: BLE001 - a timeout or a broken case is this run's outcome
         return OwnRun(str(dest), label, False, parser.completed, 0.0, parser.execution_time, None,
                       parser.history, f"{type(err).__name__}: {err}")
     error = "" if code == 0 else f"simpleFoam exited with code {code}: {parser.error or 'no message'}"
-    return OwnRun(str(dest), label, parser.converged_at is not None and code == 0,
-                  parser.converged_at or parser.completed, wall, parser.execution_time, code,
-                  parser.history, error)
+    ended = parser.converged_at or parser.stopped_at  # residualControl, or the case's runTimeControl
+    return OwnRun(str(dest), label, ended is not None and code == 0, ended or parser.completed, wall,
+                  parser.execution_time, code, parser.history, error,
+                  parser.stopped_by if parser.converged_at is None else None)
 
 
 def constant_relaxation(factors: Sequence[float], flat: bool = False) -> str:

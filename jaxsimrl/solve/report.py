@@ -20,6 +20,7 @@ from typing import Any
 from foam_bridge.atomic import atomic_write_bytes
 from foam_bridge.logparse import LogParser, field_residual
 from jaxsimrl.runs.atomic import atomic_write_json
+from jaxsimrl.solve.criterion import describe
 
 SOLVE_JSON = "solve.json"
 SOLVE_PNG = "solve.png"
@@ -48,9 +49,10 @@ class SolveReport:
         result = self.data["result"]
         lines = [f"{self.data['case']} -> {self.data['out']}",
                  f"  {result['outcome']} "
-                 f"({'converged, confirmed' if result['converged'] else 'NOT converged'}) "
+                 f"({_verdict(result)}) "
                  f"after {result['iterations']} iterations, {result['wall_time_s']:.1f} s wall, solver CPU "
                  f"{result['solver_cpu_time_s']:.1f} s; fields from {result['fields_from']}",
+                 *_criterion_line(self.data),
                  f"  overhead beyond the solver's own work: {_percent(result['overhead_fraction'])} of wall "
                  f"time"]
         lines += [f"  fallback ({event['kind']}) at {event['at_iteration']}: {event['reason']}"
@@ -61,6 +63,27 @@ class SolveReport:
                          f"controller/{name}: iterations {other['ratio_iterations']:.3f}, "
                          f"wall time {other['ratio_wall_time']:.3f}")
         return "\n".join(lines)
+
+
+def _verdict(result: dict[str, Any]) -> str:
+    """Converged and confirmed at a fixed relaxation, converged (by the case's own function object, or
+    by the case's own run that replaced the controlled one: nothing was confirmed), or not converged."""
+    if not result["converged"]:
+        return "NOT converged"
+    return "converged, confirmed" if str(result.get("converged_by")).endswith("confirmed") else "converged"
+
+
+def _criterion_line(data: dict[str, Any]) -> list[str]:
+    """The criterion, where it came from, what ended the run (jaxsimrl.solve.criterion), where it started."""
+    settings, result = data["settings"], data["result"]
+    if "criterion_from" not in settings:
+        return []
+    line = f"  criterion {describe(settings['criterion'], settings['criterion_from'])}"
+    if result.get("converged_by"):
+        line += f"; converged by {result['converged_by']}"
+    if settings.get("started_from"):
+        line += f"; started from {settings['started_from']}"
+    return [line]
 
 
 def _percent(fraction: float | None) -> str:

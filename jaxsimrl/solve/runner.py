@@ -1,7 +1,8 @@
 """``solve_case``: converge a user's case with a controller, never worse than the case's own settings.
 
 Layout of ``out`` afterwards: the user's case as a normal OpenFOAM case (their system/, constant/, 0/, the
-converged time directory, ``log.simpleFoam``; foam_bridge.export), ``solve.json`` and ``solve.png``
+time directory it started from when a later one, the converged time directory, ``log.simpleFoam``;
+foam_bridge.export), ``solve.json`` and ``solve.png``
 (jaxsimrl.solve.report), and with ``compare`` the comparison runs under ``compare/``. ``solve.json`` is
 written first with status "incomplete": a run killed before its end says so; Ctrl-C leaves
 "interrupted"; only a finished run says "complete".
@@ -13,6 +14,7 @@ import os
 import shutil
 import time
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -21,6 +23,15 @@ from foam_bridge.errors import OpenFOAMNotFoundError
 from foam_bridge.export import export_case
 from jaxsimrl.runs.signals import stop_word
 from jaxsimrl.solve.controller import BackgroundLoad, Controller, as_controller, policy_env_config
+from jaxsimrl.solve.criterion import (
+    Residual,
+    converged_by,
+    describe,
+    own_converged_by,
+    reported,
+    source_of,
+    write_criterion,
+)
 from jaxsimrl.solve.drive import ControlledRun, LearnedActor, drive
 from jaxsimrl.solve.fields import observed_mapping
 from jaxsimrl.solve.own import OwnProcess, OwnRun
@@ -34,6 +45,7 @@ from jaxsimrl.solve.settings import (
     own_action,
     read_case_settings,
     solve_config,
+    start_of,
 )
 from jaxsimrl.solve.watchdog import WatchdogSettings
 
@@ -47,15 +59,21 @@ def solve_case(case: str | Path, out: str | Path, policy: Any = None,
                watchdog: WatchdogSettings | None = None,
                action_box: tuple[Sequence[float], Sequence[float]] | None = None,
                step_timeout_s: float = 300.0, inlet_patch: str = "inlet",
-               say: Callable[[str], None] | None = None, rule: str | None = None) -> SolveReport:
+               say: Callable[[str], None] | None = None, residual: Residual | str | None = None,
+               from_time: float | None = None, rule: str | None = None) -> SolveReport:
     """Run ``case`` with the controller (``policy``: a run directory, a :class:`Controller`, a policy from
     ``jaxsimrl.load_policy``, or None for the shipped one) into ``out``; see the module docstring. Bad
     input (a missing or decomposed case, a non-empty ``out``, a case the bridge cannot drive, a bad
     policy): one-line ValueError before any result is claimed. ``action_box`` replaces the case's own box
-    (experiments only); ``inlet_patch``: the patch whose mean |U|^2 the controller observes; ``rule``: a
+    (experiments only); ``inlet_patch``: the patch whose mean |U|^2 the controller observes;
+    ``residual``: the convergence criterion instead of the case's residualControl, for every run of the
+    solve and written into ``out``'s fvSolution (jaxsimrl.solve.criterion: ``1e-4``, ``{"p": 1e-3}`` or
+    ``"p=1e-3,U=1e-4"``); ``from_time``: the case's time directory to start from (default its latest:
+    a partly converged run goes on; iterations and the budget count from there); ``rule``: a
     no-training rule (a key of jaxsimrl.solve.rules.RULES) instead of ``policy``."""
     say = say or (lambda text: None)
     case, out = _check_paths(case, out)
+    begin = start_of(case, from_time)
     started = time.monotonic()
     created = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
@@ -63,8 +81,8 @@ def solve_case(case: str | Path, out: str | Path, policy: Any = None,
     others: list[OwnProcess] = []
     try:
         report = _solve(case, out, policy, compare, compare_constant, max_iterations, confirm_alpha_u,
-                        watchdog or WatchdogSettings(), (action_box, step_timeout_s, inlet_patch), say,
-                        started, others, rule)
+                        watchdog or WatchdogSettings(), (action_box, step_timeout_s, inlet_patch), residual,
+                        begin, say, started, others, rule)
     except KeyboardInterrupt as stop:  # Ctrl-C or SIGTERM: the finally blocks below stop every solver
         write_status(out, "interrupted", case, stop_word(stop))
         raise
@@ -107,8 +125,9 @@ def _check_paths(case: str | Path, out: str | Path) -> tuple[Path, Path]:
 
 def _solve(case: Path, out: Path, policy: Any, compare: bool, constant: Sequence[float] | None,
            max_iterations: int | None, confirm: float | None, watchdog: WatchdogSettings,
-           env: tuple[Any, float, str], say: Callable[[str], None], started: float,
-           others: list[OwnProcess], rule: str | None) -> SolveReport:
+           env: tuple[Any, float, str], residual: Residual | str | None, begin: tuple[int, str],
+           say: Callable[[str], None], started: float, others: list[OwnProcess],
+           rule: str | None) -> SolveReport:
     # What waits on what: the controller loads (JAX, its acting arrays, the first action compiled) in a
     # thread from here on, beside the case check (copy, mesh, one SIMPLE iteration: once, the controlled
     # run's env starts from its build) and the worker's start; the first step waits for both, every
@@ -118,32 +137,48 @@ def _solve(case: Path, out: Path, policy: Any, compare: bool, constant: Sequence
     policy = as_controller(policy) if rule is None else rule_controller(rule)
     loading = None if isinstance(policy, Controller) else BackgroundLoad(policy, then=preload_plotting)
     trained = policy.policy.env_params if isinstance(policy, Controller) else policy_env_config(policy)
-    settings = read_case_settings(case)
+    start, started_from = begin
+    settings = read_case_settings(case, start)
+    if start and settings.budget is None and max_iterations is None:
+        raise ValueError(f"case {case}: its endTime is not after the time {start} it starts from: give "
+                         f"--max-iterations N (or --from-time)")
     budget = max_iterations or settings.budget or DEFAULT_MAX_ITERATIONS
-    cfg, checked = solve_config(case, trained, out / WORK_DIR, budget, confirm, *env)
+    cfg, checked = solve_config(case, trained, out / WORK_DIR, budget, confirm, *env, residual=residual,
+                                start_time=start)
     phases["case_check_s"], mark = time.monotonic() - mark, time.monotonic()
+    own = Own(settings.flat, None if residual is None else dict(cfg.convergence), start)
     parallel = len(os.sched_getaffinity(0)) >= 2  # else the runs would share one core: one after the other
-    comparisons = _start_comparisons(case, out, compare, constant, settings.flat, others) if parallel else {}
+    comparisons = _start_comparisons(case, out, compare, constant, own, others) if parallel else {}
     observed = observed_mapping(trained, checked.info.solved_fields)[0]
-    say(f"solve {case}: criterion {dict(cfg.convergence)}, box {cfg.action_low}-{cfg.action_high}, "
-        f"budget {budget} iterations" + (f", observes {observed}" if observed else ""))
+    criterion_from = source_of(cfg.convergence, residual)
+    say(f"solve {case}: criterion {describe(reported(cfg.convergence), criterion_from)}, box "
+        f"{cfg.action_low}-{cfg.action_high}, {started_from}, budget {budget} iterations"
+        + (f", observes {observed}" if observed else ""))
     controller = policy if loading is None else loading
     run = _controlled(cfg, trained, settings, controller, watchdog, say, checked)
     controller = controller if loading is None else loading.result()
     phases["controlled_run_s"], mark = time.monotonic() - mark, time.monotonic()
     rescue = None
     if run.outcome == "not run" or run.outcome in FAILURES:  # a run that reached the budget keeps its fields
-        rescue = _own_rescue(case, out, comparisons, run, say)
+        rescue = _own_rescue(case, out, comparisons, run, own, say)
     episode = out / WORK_DIR / "env_0" / "episode"
-    time_name = export_case(Path(rescue.case) if rescue is not None else episode, case, out)
+    time_name = export_case(Path(rescue.case) if rescue is not None else episode, case, out, start_time=start)
+    if own.criterion is not None:  # a plain simpleFoam restart of out stops where this solve did
+        write_criterion(out, own.criterion)
     phases["fallback_and_export_s"] = time.monotonic() - mark
     wall = time.monotonic() - started
     if not parallel:
-        comparisons = _start_comparisons(case, out, compare, constant, settings.flat, others)
+        comparisons = _start_comparisons(case, out, compare, constant, own, others)
     results = {name: process.result(24 * 3600.0) for name, process in comparisons.items()}
     report = build_report(case, out, controller, cfg, run, rescue, time_name, wall, results, episode,
                           observed if run.outcome != "not run" else None)
     report.data["result"]["phases"] = phases
+    report.data["settings"]["criterion"] = reported(cfg.convergence)
+    report.data["settings"]["criterion_from"] = criterion_from
+    report.data["settings"]["started_from"] = started_from
+    report.data["result"]["converged_by"] = converged_by(run, rescue, criterion_from)
+    for name, other in results.items():
+        report.data["compare"][name]["converged_by"] = own_converged_by(other, criterion_from)
     report.data["compare_parallel"] = parallel
     write_report(out, report)
     return report
@@ -177,10 +212,22 @@ def rule_controller(name: str) -> Controller:
     return Controller(rule, {"rule": name, "interval": rule.env_params.interval,
                              "about": "no training: jaxsimrl.solve.rules"})
 
-def _start_comparisons(case: Path, out: Path, compare: bool, constant: Sequence[float] | None, flat: bool,
+
+@dataclass(frozen=True)
+class Own:
+    """How the case's own runs (comparisons, fallback) run: whether its relaxationFactors are flat, the
+    criterion given to solve (None: the case's own residualControl) and the time they start from, which
+    they must share with the controlled run to be comparable."""
+
+    flat: bool
+    criterion: dict[str, float] | None
+    start: int = 0
+
+
+def _start_comparisons(case: Path, out: Path, compare: bool, constant: Sequence[float] | None, own: Own,
                        others: list[OwnProcess]) -> dict[str, OwnProcess]:
-    """The comparison runs (the case's own controlDict, budget included), started now: they run beside
-    the controlled one, and the report gives the cores the runs shared."""
+    """The comparison runs (the case's own controlDict, budget included; solve's criterion), started now:
+    they run beside the controlled one, and the report gives the cores the runs shared."""
     wanted: dict[str, Sequence[float] | None] = {}
     if compare:
         wanted["own"] = None
@@ -190,12 +237,12 @@ def _start_comparisons(case: Path, out: Path, compare: bool, constant: Sequence[
     for name, factors in wanted.items():
         dest = out / COMPARE_DIR / name
         dest.parent.mkdir(parents=True, exist_ok=True)
-        started[name] = OwnProcess(case, dest, name, 24 * 3600.0, factors, flat)
+        started[name] = OwnProcess(case, dest, name, 24 * 3600.0, factors, own.flat, own.criterion, own.start)
         others.append(started[name])
     return started
 
 
-def _own_rescue(case: Path, out: Path, comparisons: dict[str, OwnProcess], run: Any,
+def _own_rescue(case: Path, out: Path, comparisons: dict[str, OwnProcess], run: Any, own: Own,
                 say: Callable[[str], None]) -> OwnRun:
     """The case run with its own settings from its initial fields (the comparison's run if there is one)."""
     if run.outcome != "not run":
@@ -203,7 +250,8 @@ def _own_rescue(case: Path, out: Path, comparisons: dict[str, OwnProcess], run: 
     if "own" in comparisons:
         result = comparisons["own"].result(24 * 3600.0)
     else:
-        process = OwnProcess(case, out / WORK_DIR / "own", "own", 24 * 3600.0, None, False)
+        process = OwnProcess(case, out / WORK_DIR / "own", "own", 24 * 3600.0, None, False, own.criterion,
+                             own.start)
         try:
             result = process.result(24 * 3600.0)
         finally:

@@ -2,9 +2,10 @@
 
 The MDP is the policy's (step interval, observation layout, what the actions mean, the fields whose
 residuals it observes: the case's fields of the same roles, jaxsimrl.solve.fields), everything about
-the case is the case's (its residualControl as the criterion, the action box its algorithm tolerates,
-its turbulence relaxation, its inlet, its own iteration budget), and convergence is confirmed at a
-fixed relaxation (foam_bridge.confirm) so that no unconverged field is reported as converged.
+the case is the case's (its residualControl as the criterion unless ``--residual`` gives one,
+jaxsimrl.solve.criterion; the action box its algorithm tolerates, its turbulence relaxation, its inlet,
+its own iteration budget), and convergence is confirmed at a fixed relaxation (foam_bridge.confirm) so
+that no unconverged field is reported as converged.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from foam_bridge.config import FoamEnvConfig
+from jaxsimrl.solve.criterion import Residual, resolve, stop_only, stopping_function_objects
 from jaxsimrl.solve.fields import observed_mapping
 
 #: FoamEnvConfig fields that define the policy's MDP (observation, action meaning); copied when present.
@@ -56,8 +58,29 @@ class CheckedCase:
         return FoamCaseEnv(cfg, work_dir=work_dir, env_id=env_id, base=(self.directory, self.info))
 
 
-def read_case_settings(case: Path) -> CaseSettings:
-    """Read the case's relaxation factors and budget as OpenFOAM expands them (on a scratch copy)."""
+def start_of(case: Path, from_time: float | None = None) -> tuple[int, str]:
+    """The time a solve of ``case`` starts from and how it was chosen: ``from_time`` (--from-time), else
+    its latest time directory, as ``startFrom latestTime`` would (a partly converged run goes on from
+    there). One-line ValueError for a time it does not have, or one that is not an integer (the bridge
+    runs deltaT 1)."""
+    from foam_bridge.fields import time_directories
+
+    times = [value for value, path in time_directories(case) if (path / "U").is_file()
+             or (path / "U.gz").is_file() or value == 0]
+    if from_time is not None and from_time not in times:
+        raise ValueError(f"--from-time {from_time:g}: case {case} has no time directory {from_time:g} with "
+                         f"fields (it has {', '.join(f'{value:g}' for value in times) or 'none'})")
+    start = from_time if from_time is not None else max(times, default=0.0)
+    if not float(start).is_integer():
+        raise ValueError(f"case {case}: time {start:g} is not an integer; solve runs deltaT 1 from an "
+                         f"integer time (give --from-time)")
+    how = "--from-time" if from_time is not None else "latest" if start > 0 else ""
+    return int(start), f"time {int(start)}" + (f" ({how})" if how else "")
+
+
+def read_case_settings(case: Path, start_time: int = 0) -> CaseSettings:
+    """Read the case's relaxation factors and budget as OpenFOAM expands them (on a scratch copy); the
+    budget of a run from ``start_time`` > 0 is the case's endTime minus it."""
     from foam_bridge import foamdict
     from foam_bridge.openfoam import find_openfoam
     from foam_bridge.template import copy_case
@@ -76,6 +99,8 @@ def read_case_settings(case: Path) -> CaseSettings:
     factors = (_factor(equations, "U"), _factor(fields, "p"), _turbulence_factor(equations))
     simple = solution.get("SIMPLE", {})
     consistent = _is_true(simple.get("consistent", False)) if isinstance(simple, dict) else False
+    if start_time:
+        control = {**control, "startTime": start_time}
     return CaseSettings(factors, flat, _budget(control), "SIMPLEC" if consistent else "SIMPLE")
 
 
@@ -129,10 +154,13 @@ def _budget(control: dict[str, Any]) -> int | None:
 
 def solve_config(case: Path, policy_cfg: FoamEnvConfig, work: Path, max_iterations: int,
                  confirm_alpha_u: float | None, action_box: tuple[Sequence[float], Sequence[float]] | None,
-                 step_timeout_s: float, inlet_patch: str = "inlet") -> tuple[FoamEnvConfig, CheckedCase]:
+                 step_timeout_s: float, inlet_patch: str = "inlet", residual: Residual | str | None = None,
+                 start_time: int = 0) -> tuple[FoamEnvConfig, CheckedCase]:
     """The env config of the controlled run (see the module docstring) and the case as its check built
     it (``work/checked`` and its CaseInfo: the controlled run's env starts from it instead of building
     and dry-running the case again); one-line CaseError/ValueError if the bridge cannot drive the case.
+    ``residual``: the criterion instead of the case's residualControl (jaxsimrl.solve.criterion);
+    ``start_time``: the case's time directory the run starts from (:func:`start_of`).
 
     Starting from the check's build is safe: the check builds exactly what the env would (the same
     copy, mesh and dry run, foam_bridge.base_case.check_case), from this config before the case's own
@@ -140,6 +168,8 @@ def solve_config(case: Path, policy_cfg: FoamEnvConfig, work: Path, max_iteratio
     the case's own factors, or the box's lower corner, which is the built-in one for a case without own
     factors)."""
     from foam_bridge.base_case import check_case, check_case_files
+    from foam_bridge.errors import NoResidualControl
+    from foam_bridge.logparse import solved_field_names
     from foam_bridge.openfoam import find_openfoam
     from jaxsimrl.envs.foam_config import user_case_config
 
@@ -149,7 +179,7 @@ def solve_config(case: Path, policy_cfg: FoamEnvConfig, work: Path, max_iteratio
     interval = min(copied.get("interval", 100), max_iterations)
     cfg = FoamEnvConfig(**{**copied, "interval": interval}, case_dir=case, max_iterations=max_iterations,
                         confirm_alpha_u=confirm_alpha_u, work_dir=work, keep_cases=True,
-                        step_timeout_s=step_timeout_s, inlet_patch=inlet_patch)
+                        step_timeout_s=step_timeout_s, inlet_patch=inlet_patch, start_time=start_time)
     explicit: list[str] = []
     if action_box is not None:
         cfg = dataclasses.replace(cfg, action_low=tuple(action_box[0]), action_high=tuple(action_box[1]))
@@ -157,11 +187,37 @@ def solve_config(case: Path, policy_cfg: FoamEnvConfig, work: Path, max_iteratio
     check_case_files(case, cfg, need_mesh=False)  # a wrong path says so, OpenFOAM or not
     info = check_case(case, cfg, find_openfoam(cfg.openfoam_path), work)
     checked = CheckedCase(work / "checked", info)
-    cfg = user_case_config(cfg, explicit, checked=(checked.directory, checked.info))
+    try:
+        cfg = user_case_config(cfg, explicit + ["convergence"] * (residual is not None),
+                               checked=(checked.directory, checked.info))
+    except NoResidualControl as err:  # train-foam's hint names its --config; solve has a flag
+        cfg = _stopped_by_the_case(cfg, explicit, checked, err.where)
+    if residual is not None:
+        criterion = resolve(residual, solved_field_names(info.solved_fields), case)
+        cfg = dataclasses.replace(cfg, convergence=criterion).validate()
     mapping, _ = observed_mapping(policy_cfg, info.solved_fields)  # no mapping: not_applicable says why
     if mapping is not None:
         cfg = dataclasses.replace(cfg, observed_fields=tuple(mapping.values())).validate()
     return cfg, checked
+
+
+def _stopped_by_the_case(cfg: FoamEnvConfig, explicit: list[str], checked: CheckedCase, where: Any
+                         ) -> FoamEnvConfig:
+    """``cfg`` of a case without residualControl: its runTimeControl's criterion alone
+    (jaxsimrl.solve.criterion) and its own box; else a one-line CaseError naming --residual."""
+    from foam_bridge import foamdict
+    from foam_bridge.errors import CaseError
+    from foam_bridge.logparse import solved_field_names
+    from foam_bridge.openfoam import find_openfoam
+    from jaxsimrl.envs.foam_config import user_case_config
+
+    controls = foamdict.expand(find_openfoam(cfg.openfoam_path), checked.directory, "system/controlDict")
+    if not stopping_function_objects(controls):
+        raise CaseError(f"{where}: SIMPLE has no residualControl (nor a runTimeControl function object that "
+                        f"ends the run), so simpleFoam never stops converged: give a criterion with "
+                        f"--residual (1e-4 for every field, or p=1e-3,U=1e-4)")
+    cfg = user_case_config(cfg, [*explicit, "convergence"], checked=(checked.directory, checked.info))
+    return dataclasses.replace(cfg, convergence=stop_only(solved_field_names(checked.info.solved_fields)))
 
 
 def own_action(settings: CaseSettings, cfg: FoamEnvConfig, size: int) -> list[float]:
