@@ -243,10 +243,10 @@ def final_rows(path: Path) -> Table | None:
     return table
 
 
-def _row_values(cells: Sequence[str], names: Sequence[str]) -> tuple[str, dict[str, float]]:
+def _row_values(cells: Sequence[str], names: Sequence[str]) -> tuple[str, dict[str, tuple[float, ...]]]:
     """(the row's key: its text cells, {column: value}); a vector cell is one value, its components."""
     text: list[str] = []
-    values: dict[str, float] = {}
+    values: dict[str, tuple[float, ...]] = {}
     for cell, name in zip(cells, names, strict=True):
         numbers = _numbers(cell)
         if numbers is None:
@@ -294,10 +294,11 @@ def summary_line(label: str, agreement: Mapping[str, Any]) -> str:
         return f"results agree with {label}{same}: {measured}"
     offenders = [(name, entry) for name, entry in (*fields.items(), *objects.items())
                  if entry["ok"] is not True]
+    # worst first; a quantity one run lacks ("not compared") before any measured one
     offenders.sort(key=lambda item: -math.inf if item[1]["value"] is None else -item[1]["value"])
     named = ", ".join(f"{name} {_value(entry['value'])}" for name, entry in offenders[:3])
     more = f" and {len(offenders) - 3} more" if len(offenders) > 3 else ""
-    return f"results DIFFER from {label}: {named}{more} above tolerance; {measured}"
+    return f"results DIFFER from {label}: {named}{more}; {measured}"
 
 
 def _measured(what: str, entries: Mapping[str, Mapping[str, Any]], tol: float) -> str:
