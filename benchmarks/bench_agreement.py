@@ -27,8 +27,9 @@ import re
 import shutil
 from pathlib import Path
 
+from foam_bridge.export import latest_time
 from jaxsimrl.solve import solve_case
-from jaxsimrl.solve.agreement import field_difference, final_time, function_object_differences
+from jaxsimrl.solve.agreement import field_difference, function_object_differences
 from jaxsimrl.solve.own import OwnProcess
 
 TUTORIAL = Path("/usr/share/doc/openfoam-examples/examples/incompressible/simpleFoam/pitzDaily")
@@ -97,7 +98,7 @@ def measure(root: Path) -> dict:
              ("constant tight", "own tight"), ("own 3x looser", "controller"),
              ("own 10x looser", "controller")]
     return {"r": LOOSEST,
-            "iterations": {name: int(final_time(case).name) for name, case in runs.items()},
+            "iterations": {name: int(latest_time(case).name) for name, case in runs.items()},
             "to_reference": {name: _fields(case, reference) for name, case in runs.items()},
             "pairs": {f"{a} vs {b}": {"fields": _fields(runs[a], runs[b]),
                                       "function_objects": function_object_differences(runs[a], runs[b])[0]}

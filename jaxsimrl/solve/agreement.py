@@ -49,8 +49,8 @@ from typing import Any
 
 import numpy as np
 
-from foam_bridge.export import POST_PROCESSING
-from foam_bridge.fields import relative_l2, time_directories
+from foam_bridge.export import POST_PROCESSING, latest_time
+from foam_bridge.fields import relative_l2
 
 #: Tolerances: these factors x the case's loosest residualControl threshold (see the module docstring).
 FIELD_FACTOR = 5.0
@@ -109,12 +109,6 @@ def _entry(value: float | None, tol: float, note: str = "") -> dict[str, Any]:
     return {**entry, "note": note} if note else entry
 
 
-def final_time(case: Path) -> Path | None:
-    """The case's latest time directory after 0 (a run's converged fields), None if there is none."""
-    times = [path for value, path in time_directories(case) if value > 0]
-    return times[-1] if times else None
-
-
 def read_internal(path: Path) -> tuple[np.ndarray, bool] | None:
     """(internal field, uniform?) of one field file (ascii or binary; ``path`` or ``path.gz``); None if
     it is missing or unreadable. A uniform field comes back as its one value."""
@@ -137,7 +131,7 @@ def field_difference(ours: Path, theirs: Path, name: str, label: str = "own") ->
     """(relative L2 difference of field ``name`` between the two cases' final times, note); the value is
     None, with the reason in the note, when either run lacks a readable field."""
     read = [read_internal(time / name) if time is not None else None
-            for time in (final_time(ours), final_time(theirs))]
+            for time in (latest_time(ours), latest_time(theirs))]
     missing = [who for who, field in zip(_runs(label), read, strict=True) if field is None]
     if missing:
         return None, f"missing or unreadable in {' and '.join(missing)}"
