@@ -2,7 +2,8 @@
 
     .venv/bin/python benchmarks/bench_solve.py pitzDaily airFoil2D backwardFacingStep2D --out /tmp/bench
 
-(``--policy RUN`` solves with a train-foam run's policy instead of the shipped controller.)
+(``--policy RUN`` solves with a train-foam run's policy instead of the shipped controller; ``--controller
+residual-rule`` with the no-training rule, jaxsimrl.solve.rules.)
 
 Prints one row per case: iterations and wall time of the controlled run and of the case's own settings,
 their ratios, solve's overhead beyond the solver's own work (and its fixed cost in seconds, with the
@@ -24,16 +25,17 @@ from jaxsimrl.solve.agreement import summary_line
 TUTORIALS = Path("/usr/share/doc/openfoam-examples/examples/incompressible/simpleFoam")
 
 
-def bench(name: str, root: Path, policy: Path | None = None) -> dict:
+def bench(name: str, root: Path, policy: Path | None = None, rule: str | None = None) -> dict:
     """Solve one tutorial (a fresh copy) with --compare, by ``policy`` (a train-foam run; default: the
-    shipped controller); its row."""
+    shipped controller) or the no-training ``rule``; its row."""
     case = root / name
     shutil.rmtree(case, ignore_errors=True)
     shutil.rmtree(root / f"{name}.solved", ignore_errors=True)
     shutil.copytree(TUTORIALS / name, case)
-    data = solve_case(case, root / f"{name}.solved", policy=policy, compare=True).data
+    data = solve_case(case, root / f"{name}.solved", policy=policy, compare=True, rule=rule).data
     result, own = data["result"], data["compare"]["own"]
-    return {"case": name, "converged": result["converged"], "iterations": result["iterations"],
+    return {"case": name, "controller": rule or "learned", "converged": result["converged"],
+            "iterations": result["iterations"],
             "wall_s": round(result["wall_time_s"], 2), "own_converged": own["converged"],
             "own_iterations": own["iterations"], "own_wall_s": round(own["wall_time_s"], 2),
             "ratio_iterations": round(own["ratio_iterations"], 3),
@@ -57,10 +59,11 @@ def main() -> None:
     parser.add_argument("--out", type=Path, required=True)
     parser.add_argument("--policy", type=Path, default=None,
                         help="a train-foam run directory (default: the shipped controller)")
+    parser.add_argument("--controller", choices=("learned", "residual-rule"), default="learned")
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     for name in args.cases:
-        row = bench(name, args.out, args.policy)
+        row = bench(name, args.out, args.policy, None if args.controller == "learned" else args.controller)
         print(json.dumps(row), flush=True)
         with open(args.out / "rows.jsonl", "a") as rows:
             rows.write(json.dumps(row) + "\n")

@@ -7,11 +7,17 @@ FoamCaseEnv driven directly with the same constant factors.
 from __future__ import annotations
 
 import csv
+import os
+import signal
+import subprocess
+import sys
+from pathlib import Path
 
 import matplotlib.text
 import numpy as np
 import pytest
 from foam_marks import needs_openfoam
+from slow_case import STOP_LIMIT_S, iterations_in, seconds_until, wait_until
 
 from foam_bridge.config import MESH_SCALE_USABLE_MIN, FoamEnvConfig
 from foam_bridge.grid import (
@@ -282,3 +288,42 @@ def test_two_slots_freed_in_one_step_with_one_cell_left_start_only_that_cell(mon
     assert [(c.alpha_u, c.iterations, c.outcome, c.wall_time_s) for c in cells] == [
         (0.9, 100, "converged", 1.0), (0.8, 100, "converged", 1.0), (0.7, 100, "converged", 1.0)]
     assert pool.resets == [0, 1, 0]
+
+
+@needs_openfoam
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_a_stopped_grid_on_a_refined_mesh_leaves_no_solver_within_5_s(tmp_path, sig):
+    """The built-in step refined 2.5x (128k cells, about half a second an iteration here, so a step of
+    100 lasts close to a minute): Ctrl-C (to the whole group, as a terminal sends it) or SIGTERM, sent
+    while both solvers are a few iterations into a step, leaves no solver after 5 s and says what
+    OUT holds."""
+    from foam_bridge.backends.reaper import processes_under
+
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    process = subprocess.Popen(
+        [str(Path(sys.executable).with_name("jaxsimrl")), "grid-foam", "--mesh-scale", "2.5", "--alpha-u",
+         "0.95", "--alpha-p", "0.9", "0.95", "--pool", "2", "--out", str(tmp_path / "out")],
+        env={**os.environ, "TMPDIR": str(tmp)}, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+        start_new_session=True)
+
+    def logs() -> list[int]:
+        return [iterations_in(log) for log in tmp.rglob("episode/log.simpleFoam")]
+
+    try:
+        wait_until(lambda: len(logs()) == 2 and min(logs()) >= 3 or process.poll() is not None, 300,
+                   "both solvers to be 3 iterations into a step")
+        assert process.poll() is None, process.communicate()
+        assert max(logs()) < 70  # the step has most of it to go
+        if sig == signal.SIGINT:
+            os.killpg(process.pid, sig)
+        else:
+            process.send_signal(sig)
+        took = seconds_until(lambda: not processes_under(tmp), 30.0)
+        output, _ = process.communicate(timeout=30)
+    finally:
+        if process.poll() is None:
+            os.killpg(process.pid, signal.SIGKILL)
+    assert took < STOP_LIMIT_S, f"a solver ran on for {took:.1f} s after {sig.name}"
+    assert process.returncode == 128 + sig
+    assert "stopped: 0 of 2 cells finished (nothing was written)" in output, output

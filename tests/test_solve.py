@@ -14,7 +14,6 @@ import shutil
 import signal
 import subprocess
 import sys
-import time
 import warnings
 from pathlib import Path
 
@@ -22,6 +21,7 @@ import numpy as np
 import pytest
 from foam_marks import OPENFOAM
 from foamlib import FoamFile
+from slow_case import STOP_LIMIT_S, iterations_in, seconds_until, slow_pitz_daily, wait_until
 
 from foam_bridge import case as foam_case
 from foam_bridge.config import FoamEnvConfig
@@ -312,21 +312,37 @@ def test_a_case_it_cannot_drive_is_one_line_and_exit_2(tmp_path: Path) -> None:
     assert process.returncode == 2 and err.count("\n") == 1 and "decomposed" in err
 
 
-@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGKILL])
-def test_interrupted_solve_leaves_no_solver_and_says_so(tmp_path: Path, sig: signal.Signals) -> None:
-    case = _pitz_daily(tmp_path)
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM, signal.SIGKILL])
+def test_a_stopped_solve_leaves_no_solver_within_5_s_mid_step_and_says_so(tmp_path: Path,
+                                                                          sig: signal.Signals) -> None:
+    """On a case whose step lasts over a minute (tests/slow_case.py): Ctrl-C, SIGTERM (a batch scheduler,
+    docker stop) and kill -9 of solve, sent while the controlled run and the own run are both mid-step,
+    leave no solver after 5 s. A solver that ran on to the end of its step would fail this."""
+    case = slow_pitz_daily(tmp_path / "slow")
     out = tmp_path / "out"
     process = _cli(str(case), "--out", str(out), "--compare", cwd=tmp_path)
-    deadline = time.monotonic() + 120
-    while len(_marked_processes(tmp_path)) < 2 and time.monotonic() < deadline and process.poll() is None:
-        time.sleep(0.2)
-    assert _marked_processes(tmp_path), "no solver started"
-    process.send_signal(sig)
-    process.communicate(timeout=60)
-    assert process.returncode == (130 if sig == signal.SIGINT else -signal.SIGKILL)
-    deadline = time.monotonic() + 30
-    while _marked_processes(tmp_path) and time.monotonic() < deadline:
-        time.sleep(0.2)
-    assert not _marked_processes(tmp_path)
-    status = json.loads((out / "solve.json").read_text())["status"]
-    assert status == ("interrupted" if sig == signal.SIGINT else "incomplete")
+    controlled = out / ".solve-work" / "env_0" / "episode" / "log.simpleFoam"
+    own = out / "compare" / "own" / "log.simpleFoam"
+
+    def both_mid_step() -> bool:
+        return min(iterations_in(controlled), iterations_in(own)) >= 3 or process.poll() is not None
+
+    try:
+        wait_until(both_mid_step, 240, "both solvers to be 3 iterations into their first step")
+        assert process.poll() is None, process.communicate()
+        assert iterations_in(controlled) < 90  # the step has a minute to go
+        process.send_signal(sig)
+        took = seconds_until(lambda: not _marked_processes(tmp_path), 30.0)
+        _, err = process.communicate(timeout=30)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert took < STOP_LIMIT_S, f"a solver ran on for {took:.1f} s after {sig.name}"
+    assert process.returncode == {signal.SIGINT: 130, signal.SIGTERM: 143}.get(sig, -signal.SIGKILL)
+    status = json.loads((out / "solve.json").read_text())
+    if sig == signal.SIGKILL:
+        assert status["status"] == "incomplete"
+    else:
+        assert status["status"] == "interrupted" and "every solver it started was stopped" in status["holds"]
+        assert err.strip().splitlines()[-1] == ("jaxsimrl solve: interrupted" if sig == signal.SIGINT else
+                                                "jaxsimrl solve: terminated (SIGTERM)")

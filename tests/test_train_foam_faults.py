@@ -10,6 +10,8 @@ import math
 import os
 import shutil
 import signal
+import subprocess
+import sys
 import threading
 import time
 from pathlib import Path
@@ -17,6 +19,7 @@ from pathlib import Path
 import pytest
 from foam_marks import needs_openfoam
 from rich.console import Console
+from slow_case import STOP_LIMIT_S, iterations_in, seconds_until, slow_pitz_daily, wait_until
 from test_train_foam import TINY  # the cheap real runs: smallest mesh, 4 steps per env per update
 
 from foam_bridge.config import FoamEnvConfig
@@ -284,53 +287,90 @@ def test_ctrl_c_during_a_chunk_is_told_at_once_and_the_chunk_is_still_saved(tmp_
         session = Session(run, SlowTrainer(), MetricsLog(run), checkpoints, meta={})
         with pytest.raises(KeyboardInterrupt):
             train(session, {"update": np.int32(0)}, 0, Quiet(),
-                  on_interrupt=lambda count: told.append((count, time.monotonic() - start)))
+                  on_interrupt=lambda count, signum: told.append((count, time.monotonic() - start)))
     assert [count for count, _ in told] == [1, 2]
     assert told[-1][1] < 1.6  # while the 2 s chunk was still running
     assert run.checkpoint_steps() == [1]
 
 
-@needs_openfoam
-def test_ctrl_c_is_acknowledged_at_once_and_a_second_stops_now_resumable(tmp_path):
-    import subprocess
-    import sys
+def _train_foam(argv: list[str], tmp: Path) -> tuple[subprocess.Popen, list[str]]:
+    """train-foam in a session of its own (Ctrl-C goes to the whole group, trainer and workers, as a
+    terminal sends it), its work directories under ``tmp``; stderr lines collected as they come."""
+    script = Path(sys.executable).with_name("jaxsimrl")
+    process = subprocess.Popen([str(script), "train-foam", *argv], env={**os.environ, "TMPDIR": str(tmp)},
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                               start_new_session=True)
+    lines: list[str] = []
+    threading.Thread(target=lambda: lines.extend(iter(process.stderr.readline, "")), daemon=True).start()
+    return process, lines
 
+
+def _stop(process: subprocess.Popen, sig: signal.Signals) -> None:
+    """Ctrl-C as a terminal sends it (the whole group); SIGTERM and SIGKILL to the trainer alone."""
+    if sig == signal.SIGINT:
+        os.killpg(process.pid, sig)
+    else:
+        process.send_signal(sig)
+
+
+@needs_openfoam
+def test_ctrl_c_stops_now_and_the_run_resumes_from_its_last_checkpoint(tmp_path):
     from foam_bridge.backends.reaper import processes_under
 
     run, tmp = tmp_path / "run", tmp_path / "tmp"
     tmp.mkdir()
-    script = Path(sys.executable).with_name("jaxsimrl")
-    # a session of its own: Ctrl-C goes to the whole group (trainer and workers), as a terminal sends it
-    process = subprocess.Popen([str(script), "train-foam", *TINY, "--episodes", "50", "--out", str(run)],
-                               env={**os.environ, "TMPDIR": str(tmp)}, stdout=subprocess.PIPE,
-                               stderr=subprocess.PIPE, text=True, start_new_session=True)
-    lines: list[str] = []
-    reader = threading.Thread(target=lambda: lines.extend(iter(process.stderr.readline, "")), daemon=True)
-    reader.start()
+    process, lines = _train_foam([*TINY, "--episodes", "50", "--out", str(run)], tmp)
     try:
-        deadline = time.monotonic() + 400
-        while not (run / "checkpoints" / "1").is_dir():
-            assert time.monotonic() < deadline and process.poll() is None, lines
-            time.sleep(0.2)
+        wait_until(lambda: (run / "checkpoints" / "1").is_dir() or process.poll() is not None, 400,
+                   "the first checkpoint")
+        assert process.poll() is None, lines
         time.sleep(0.5)  # inside update 2 (several seconds of solver steps)
-        os.killpg(process.pid, signal.SIGINT)
-        deadline = time.monotonic() + 5
-        while not any("stopping after this update" in line for line in lines):
-            assert time.monotonic() < deadline, lines  # acknowledged at once
-            time.sleep(0.05)
-        assert process.poll() is None  # it waits for the update in flight
-        os.killpg(process.pid, signal.SIGINT)
-        assert process.wait(timeout=10) == 130  # a second Ctrl-C stops now
+        _stop(process, signal.SIGINT)
+        assert process.wait(timeout=10) == 130  # at once, not after the update in flight
     finally:
         if process.poll() is None:
             os.killpg(process.pid, signal.SIGKILL)
-    reader.join(timeout=5)
-    assert any("stopped now" in line and f"--resume {run}" in line for line in lines), lines
-    deadline = time.monotonic() + 10
-    while processes_under(tmp):  # the solvers died with their workers
-        assert time.monotonic() < deadline, processes_under(tmp)
-        time.sleep(0.2)
+    assert seconds_until(lambda: not processes_under(tmp), 30.0) < STOP_LIMIT_S
+    time.sleep(0.5)  # the reader thread takes the last lines
+    assert any("stopped now (Ctrl-C)" in line and f"--resume {run}" in line for line in lines), lines
     assert not any("Traceback" in line for line in lines), lines  # no worker's BrokenPipeError either
     steps = sorted(int(p.name) for p in (run / "checkpoints").iterdir() if p.name.isdigit())
     assert steps and steps[-1] >= 1
     assert main(["train-foam", "--resume", str(run), "--print-config"]) == 0  # resumable
+
+
+@needs_openfoam
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM, signal.SIGKILL])
+def test_a_stopped_train_foam_leaves_no_solver_within_5_s_mid_step(tmp_path, sig):
+    """Steps that last over a minute (tests/slow_case.py): Ctrl-C, SIGTERM and kill -9 of train-foam,
+    sent while both solvers are a few iterations into a step, leave no solver after 5 s. A solver that
+    ran on to the end of its step (or of the update) would fail this."""
+    from foam_bridge.backends.reaper import processes_under
+
+    case = slow_pitz_daily(tmp_path / "slow")
+    run, tmp = tmp_path / "run", tmp_path / "tmp"
+    tmp.mkdir()
+    process, lines = _train_foam(["--case", str(case), "--pool", "2", "--steps-per-update", "8",
+                                  "--max-iterations", "300", "--episodes", "50", "--out", str(run)], tmp)
+
+    def logs() -> list[int]:
+        return [iterations_in(log) for log in tmp.rglob("episode*/log.simpleFoam")]
+
+    try:
+        wait_until(lambda: len(logs()) == 2 and min(logs()) >= 3 or process.poll() is not None, 300,
+                   "both solvers to be 3 iterations into a step")
+        assert process.poll() is None, lines
+        assert max(logs()) < 90  # the step has a minute to go
+        _stop(process, sig)
+        took = seconds_until(lambda: not processes_under(tmp), 30.0)
+        code = process.wait(timeout=30)
+    finally:
+        if process.poll() is None:
+            os.killpg(process.pid, signal.SIGKILL)
+    assert took < STOP_LIMIT_S, f"a solver ran on for {took:.1f} s after {sig.name}"
+    assert code == {signal.SIGINT: 130, signal.SIGTERM: 143}.get(sig, -signal.SIGKILL)
+    if sig != signal.SIGKILL:
+        time.sleep(0.5)  # the reader thread takes the last lines
+        word = "Ctrl-C" if sig == signal.SIGINT else "SIGTERM"
+        assert any(f"stopped now ({word})" in line and "nothing to resume" in line for line in lines), lines
+        assert not run.exists()  # stopped before its first update: nothing was saved, nothing is left

@@ -44,13 +44,17 @@ from typing import Any
 from foam_bridge.backends.worker import Reply, Request
 from foam_bridge.errors import PoolLostError
 
-__all__ = ["RESET_ALLOWANCE_S", "WORKER_DIED", "Backend", "NoRoomError",
-           "close_deadline_s", "start_deadline_s", "validate_pool"]
+__all__ = ["CLOSE_GRACE_S", "RESET_ALLOWANCE_S", "WORKER_DIED", "Backend", "NoRoomError",
+           "start_deadline_s", "validate_pool"]
 
 WORKER_DIED = "worker died"
 log = logging.getLogger("foam_bridge")
 # Seconds allowed, on top of the env's own step watchdog, for case generation (blockMesh) and start-up.
 RESET_ALLOWANCE_S = 300.0
+#: How long ``close`` lets an idle worker close its envs before killing it. Closing kills each env's
+#: solver first (milliseconds), so this bounds only the removal of case directories; a busy worker
+#: (``Backend.busy``) is never waited for: its step could take many minutes on a big mesh.
+CLOSE_GRACE_S = 30.0
 
 
 def validate_pool(num_envs: int, pool: int | None = None) -> int:
@@ -79,12 +83,6 @@ def start_deadline_s(cfg: Any) -> float:
     return max(float(getattr(cfg, "step_timeout_s", 120.0)), 30.0)
 
 
-def close_deadline_s(cfg: Any, envs: int) -> float:
-    """How long ``close`` waits for a worker with ``envs`` envs: long enough for a step it may still be
-    running (an interrupted batch) to end by its own watchdog, and for its envs to close."""
-    return _batch_deadline_s(cfg, [Request(0, "step", {})] * envs) + 30.0
-
-
 class NoRoomError(RuntimeError):
     """A worker cannot be started because the pool has nowhere to run it (see the module docstring)."""
 
@@ -108,6 +106,8 @@ class Backend(ABC):
         self.lost: list[str] = []
         #: env -> why its episode went with a dead worker that had no request of it (module docstring).
         self.stranded: dict[int, str] = {}
+        # workers sent a batch by ``run`` whose replies were not read (``run`` was interrupted there)
+        self._running: set[int] = set()
 
     def worker_of(self, env_id: int) -> int:
         """Index of the worker that hosts env ``env_id``."""
@@ -133,10 +133,12 @@ class Backend(ABC):
         for position, request in enumerate(requests):
             groups.setdefault(self.worker_of(request.env_id), []).append(position)
         sent = {w: self._send(w, [requests[p] for p in positions]) for w, positions in groups.items()}
+        self._running.update(groups)
         replies: list[Reply | None] = [None] * len(requests)
         for worker, positions in groups.items():
             batch = [requests[p] for p in positions]
             answers = self._receive(worker, batch, sent[worker], _batch_deadline_s(self.cfg, batch))
+            self._running.discard(worker)
             if answers is None:
                 answers = self._died(worker, batch)
             for position, answer in zip(positions, answers, strict=True):
@@ -154,6 +156,11 @@ class Backend(ABC):
             if not queue:
                 self._head_since[worker] = time.monotonic()
             queue.append((batch, self._send(worker, batch)))
+
+    def busy(self) -> set[int]:
+        """The workers that may be running a request now: sent a batch whose replies were not read
+        (``run`` interrupted, or submitted and not collected). ``close`` kills these at once."""
+        return self._running | {worker for worker, queue in self._queues.items() if queue}
 
     def pending(self) -> int:
         """Submitted batches not collected yet."""
@@ -252,4 +259,5 @@ class Backend(ABC):
 
     @abstractmethod
     def close(self) -> None:
-        """Close every env (their solvers die) and stop the workers. Idempotent."""
+        """Close every env (their solvers die) and stop the workers, at once: a busy worker is killed
+        with its solvers, an idle one closes its envs within CLOSE_GRACE_S or is killed. Idempotent."""

@@ -3,36 +3,45 @@
 Internal to foam_bridge (its users import from ``foam_bridge`` itself); names here may change.
 
 "spawn" (not fork) so a parent that has already initialised JAX or threads is safe. Each worker serves
-batches of requests over a pipe until it gets ``None`` or the pipe closes (the driver died); either
-way it closes its envs, so their solvers die with it. A worker that dies is noticed through its
-process sentinel and replaced (see ``base``); its solvers die with it (PR_SET_PDEATHSIG, see
-foam_bridge.solver), and whatever is still running in its env directories is killed before the
-replacement takes them over.
+batches of requests over a pipe until it gets ``None`` or the pipe closes; either way it closes its
+envs, so their solvers die with it. A worker that dies is noticed through its process sentinel and
+replaced (see ``base``); its solvers die with it (PR_SET_PDEATHSIG, see foam_bridge.solver), and
+whatever is still running in its env directories is killed before the replacement takes them over.
 
-``close()`` asks every worker to close its envs and waits for each as long as a step it may still be
-running could take (``close_deadline_s``: past the step watchdog); only then is a worker killed,
-and the processes left in its env directories with it, before the directories may be removed.
+A worker never outlives its driver by more than a poll: while it runs a step it reads nothing from the
+pipe (a step is 100 SIMPLE iterations: minutes on a big mesh), so a thread of its own watches the
+driver (its parent pid; ``DRIVER_POLL_S``) and, once the driver is gone (SIGKILL, a crash, a SIGTERM
+with no handler), kills the solvers in its env directories and exits at once.
+
+``close()`` kills at once every worker that may be mid-step (``Backend.busy``: a batch interrupted by
+Ctrl-C or SIGTERM, steps submitted and not collected), with the processes in its env directories;
+the idle ones are asked to close their envs and given ``CLOSE_GRACE_S`` before they are killed too.
+So an interrupted driver leaves no solver running within seconds, whatever the step length.
 """
 
 from __future__ import annotations
 
 import contextlib
 import multiprocessing as mp
+import os
 import signal
 import tempfile
+import threading
 import time
 from multiprocessing.connection import Connection, wait
 from pathlib import Path
 from typing import Any
 
-from foam_bridge.backends.base import Backend, close_deadline_s
+from foam_bridge.backends.base import CLOSE_GRACE_S, Backend
 from foam_bridge.backends.reaper import kill_processes_under
 from foam_bridge.backends.worker import EnvFactory, EnvHost, Reply, Request, env_dir
 
-__all__ = ["KILL_JOIN_S", "LocalBackend", "_preflight"]
+__all__ = ["DRIVER_POLL_S", "KILL_JOIN_S", "LocalBackend", "_preflight"]
 
 #: Reaping a SIGKILLed worker takes milliseconds; this only bounds a process stuck in the kernel.
 KILL_JOIN_S = 10.0
+#: How often a worker checks that its driver is alive (a getppid call: nothing to measure).
+DRIVER_POLL_S = 0.1
 
 
 def _preflight(cfg: Any) -> None:
@@ -49,10 +58,13 @@ def _preflight(cfg: Any) -> None:
             check_case(Path(cfg.case_dir), cfg, openfoam, Path(scratch))
 
 
-def _serve(conn: Connection, cfg: Any, work_dir: Path, make_env: EnvFactory | None = None) -> None:
+def _serve(conn: Connection, cfg: Any, work_dir: Path, make_env: EnvFactory | None = None,
+           driver: int | None = None) -> None:
     """Worker main loop."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the driver's to handle; it closes us
     host = EnvHost(cfg, work_dir, make_env)
+    if driver is not None:
+        threading.Thread(target=_watch_driver, args=(driver, host), name="driver-watch", daemon=True).start()
     try:
         while True:
             try:
@@ -68,6 +80,17 @@ def _serve(conn: Connection, cfg: Any, work_dir: Path, make_env: EnvFactory | No
                 break
     finally:
         host.close()
+
+
+def _watch_driver(driver: int, host: EnvHost) -> None:
+    """Once the driver is gone (this process re-parented), kill the solvers of this worker's envs and exit
+    now: the main thread may be inside a step for minutes. The solvers would also die with this process
+    (PR_SET_PDEATHSIG); killing them first does not rely on that alone."""
+    while os.getppid() == driver:
+        time.sleep(DRIVER_POLL_S)
+    for env_id in list(host.envs):  # a snapshot: the main thread may add an env meanwhile
+        kill_processes_under(env_dir(host.work_dir, env_id))
+    os._exit(1)
 
 
 class LocalBackend(Backend):
@@ -93,7 +116,7 @@ class LocalBackend(Backend):
     def _start(self, worker: int) -> None:
         parent_end, child_end = self._ctx.Pipe()
         proc = self._ctx.Process(
-            target=_serve, args=(child_end, self.cfg, self.work_dir, self._make_env),
+            target=_serve, args=(child_end, self.cfg, self.work_dir, self._make_env, os.getpid()),
             name=f"foam-worker-{worker}", daemon=True,
         )
         proc.start()
@@ -159,11 +182,17 @@ class LocalBackend(Backend):
         return self._procs[self.worker_of(env_id)].pid
 
     def close(self) -> None:
+        busy = self.busy()
+        self._queues.clear()
+        self._running.clear()
+        for worker in busy:  # mid-step: its step may take minutes; kill it and its solvers now
+            if self._conns[worker] is not None:
+                self._stop(worker)
         live = [(w, conn) for w, conn in enumerate(self._conns) if conn is not None]
-        for _, conn in live:  # ask every worker first, so they close their envs in parallel
+        for _, conn in live:  # ask the idle ones first, so they close their envs in parallel
             with contextlib.suppress(BrokenPipeError, OSError):
                 conn.send(None)
-        deadline = time.monotonic() + close_deadline_s(self.cfg, -(-self.num_envs // self.pool))
+        deadline = time.monotonic() + CLOSE_GRACE_S
         for worker, conn in live:
             proc = self._procs[worker]
             proc.join(max(deadline - time.monotonic(), 0.0))

@@ -15,7 +15,8 @@ step watchdog) the worker is lost and its envs move to the surviving actors (``b
 on Ray is bounded: an unreachable ``ray_address`` (checked with a plain TCP connect first: Ray's own
 connect retries for minutes), a cluster with fewer CPUs than ``pool`` and actors that do not start
 within the deadline are a one-line ``ClusterError`` at start; batches wait at most their deadline,
-``close`` at most ``close_deadline_s``.
+``close`` kills an actor that may be mid-step (``Backend.busy``) at once and waits for the others at
+most ``CLOSE_GRACE_S``.
 
 Security: Ray's processes listen on every interface. Ray >= 2.59 (RAY_MIN_VERSION, required) turns on
 token authentication for a local instance started by ``ray.init()``; an older Ray would let anyone who
@@ -30,7 +31,7 @@ import socket
 from pathlib import Path
 from typing import Any
 
-from foam_bridge.backends.base import WORKER_DIED, Backend, NoRoomError, close_deadline_s, start_deadline_s
+from foam_bridge.backends.base import CLOSE_GRACE_S, WORKER_DIED, Backend, NoRoomError, start_deadline_s
 from foam_bridge.backends.worker import EnvFactory, EnvHost, Reply, Request
 from foam_bridge.errors import ClusterError
 
@@ -208,10 +209,14 @@ class RayBackend(Backend):
         live = [(worker, actor) for worker, actor in enumerate(self._actors) if actor is not None]
         if not live:
             return
-        # wait for every actor (a dead one answers at once), at most as long as a step may still take
-        closing = [actor.close.remote() for _, actor in live]
-        busiest = max(len(self.envs_of(worker)) for worker, _ in live) or 1
-        self._ray.wait(closing, num_returns=len(closing), timeout=close_deadline_s(self.cfg, busiest))
+        # an actor mid-step would answer close only after its step (minutes on a big mesh): killed now
+        # below; the idle ones close their envs (a dead one answers at once) within the grace
+        busy = self.busy()
+        self._queues.clear()
+        self._running.clear()
+        closing = [actor.close.remote() for worker, actor in live if worker not in busy]
+        if closing:
+            self._ray.wait(closing, num_returns=len(closing), timeout=CLOSE_GRACE_S)
         for worker, actor in live:
             self._ray.kill(actor, no_restart=True)
             self._actors[worker] = None

@@ -112,6 +112,10 @@ def run_eval_foam(args: argparse.Namespace) -> int:
             report = evaluate_foam(spec, progress.advance, progress.say)
         except ValueError as err:
             fail(str(err))
+        except KeyboardInterrupt:  # Ctrl-C or SIGTERM: the pool has stopped every solver
+            progress.say(f"stopped: {spec.output_dir}/eval.json and eval.csv are written at the end, so "
+                         f"this evaluation left none")
+            raise
     progress.console.print(results_table(report))
     for line in oracle_lines(report):
         progress.say(line)

@@ -193,6 +193,10 @@ def run_grid_foam(args: argparse.Namespace) -> int:
                              alpha_t=args.alpha_t, conditions=conditions if len(conditions) > 1 else None)
         except ValueError as err:  # a case the env rejects: the same for every cell
             fail(str(err))
+        except KeyboardInterrupt:  # Ctrl-C or SIGTERM: run_grid's pool has stopped every solver
+            kept = f"{out / 'grid.csv'} holds them" if finished else "nothing was written"
+            progress.say(f"stopped: {len(finished)} of {total} cells finished ({kept})")
+            raise
     write_grid_csv(cells, out / "grid.csv")  # grid order
     figures = _plot_conditions(cells, cfg, args, out)
     lines = [_best_line(cells)] if len(conditions) == 1 else _write_family_best(cells, args, out)

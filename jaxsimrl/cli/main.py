@@ -11,6 +11,7 @@ import importlib
 import sys
 
 from jaxsimrl.cli.errors import OneLineArgumentParser, UsageError
+from jaxsimrl.runs.signals import exit_code, stop_word, terminate_as_interrupt
 
 # Modules that contribute subcommands.
 SUBCOMMAND_MODULES = ("jaxsimrl.cli.lorenz", "jaxsimrl.cli.eval_lorenz", "jaxsimrl.cli.foam",
@@ -32,17 +33,19 @@ def build_parser() -> OneLineArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run ``jaxsimrl argv``; returns the exit code (2 for bad input, 130 for Ctrl-C)."""
+    """Run ``jaxsimrl argv``; returns the exit code (2 for bad input, 130 for Ctrl-C, 143 for SIGTERM,
+    which takes Ctrl-C's path: jaxsimrl.runs.signals)."""
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        return int(args.func(args) or 0)
+        with terminate_as_interrupt():
+            return int(args.func(args) or 0)
     except UsageError as err:
         sys.stderr.write(f"jaxsimrl {args.command}: error: {err}\n")
         return 2
-    except KeyboardInterrupt:
-        sys.stderr.write(f"jaxsimrl {args.command}: interrupted\n")
-        return 130
+    except KeyboardInterrupt as stop:
+        sys.stderr.write(f"jaxsimrl {args.command}: {stop_word(stop)}\n")
+        return exit_code(stop)
 
 
 if __name__ == "__main__":

@@ -34,6 +34,10 @@ def register(subparsers: Any) -> None:
                         "(default: ./NAME.solved, NAME the case directory's name)")
     parser.add_argument("--policy", metavar="RUN_DIR", help="a train-foam run directory (default: the "
                         "shipped controller)")
+    parser.add_argument("--controller", choices=("learned", "residual-rule"), default="learned",
+                        help="learned: the shipped controller or --policy (default); residual-rule "
+                        "(experimental): no training, on plain SIMPLE and SIMPLEC cases alike: raise the "
+                        "factors while the residuals fall, lower them when they grow")
     parser.add_argument("--compare", action="store_true", help="also run the case with its own settings, "
                         "in parallel, and report the savings")
     parser.add_argument("--compare-constant", type=relaxation_factor, nargs="+", metavar="F",
@@ -74,6 +78,8 @@ def run_solve(args: argparse.Namespace) -> int:
     from foam_bridge.errors import CaseError, OpenFOAMNotFoundError
     from jaxsimrl.solve import solve_case
 
+    if args.policy is not None and args.controller != "learned":
+        fail(f"--policy is a learned controller; --controller {args.controller} needs no policy")
     if args.compare_constant is not None and len(args.compare_constant) not in (2, 3):
         fail(f"--compare-constant takes 2 or 3 factors (U P [TURBULENCE]), got {len(args.compare_constant)}")
     out = args.out if args.out is not None else Path.cwd() / f"{Path(args.case).resolve().name}.solved"
@@ -83,7 +89,8 @@ def run_solve(args: argparse.Namespace) -> int:
         report = solve_case(args.case, out, policy=args.policy, compare=args.compare,
                             compare_constant=args.compare_constant, max_iterations=args.max_iterations,
                             confirm_alpha_u=args.confirm_alpha_u, step_timeout_s=args.step_timeout,
-                            inlet_patch=args.inlet_patch, say=say)
+                            inlet_patch=args.inlet_patch, say=say,
+                            rule=None if args.controller == "learned" else args.controller)
     except (ValueError, CaseError, OpenFOAMNotFoundError) as err:
         fail(" ".join(str(err).split()))
     print(report.summary())

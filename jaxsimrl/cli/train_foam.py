@@ -20,14 +20,14 @@ import argparse
 import json
 import os
 import shutil
+import signal
 import sys
 from collections.abc import Callable
 from typing import Any
 
 from jaxsimrl.cli.errors import UsageError, positive_float, positive_int, seed_type
 from jaxsimrl.cli.foam_plan import KNOBS, OBSERVE_SWITCHES, FoamPlan, fresh_plan, resume_plan
-
-INTERRUPTED = 130
+from jaxsimrl.runs.signals import exit_code, stop_word
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -124,8 +124,8 @@ def run_train_foam(args: argparse.Namespace, on_chunk: Any = None) -> int:
     except (CaseError, ClusterError, OpenFOAMNotFoundError) as err:
         _drop_if_empty(run, plan)
         raise UsageError(str(err)) from None
-    except KeyboardInterrupt:
-        return _interrupted(run, plan)
+    except KeyboardInterrupt as stop:
+        return _interrupted(run, plan, stop)
     except HostEnvError as err:  # not bad input, not a solver fault: a broken host side
         _drop_if_empty(run, plan)
         resume = f"; resume with: jaxsimrl train-foam --resume {run.path}" if run.checkpoint_steps() else ""
@@ -140,9 +140,9 @@ def _drop_if_empty(run: Any, plan: FoamPlan) -> None:
         shutil.rmtree(run.path, ignore_errors=True)
 
 
-def _interrupted(run: Any, plan: FoamPlan) -> int:
-    sys.stderr.write(f"jaxsimrl train-foam: interrupted; {_stopped_text(run, plan)}\n")
-    return INTERRUPTED
+def _interrupted(run: Any, plan: FoamPlan, stop: KeyboardInterrupt) -> int:
+    sys.stderr.write(f"jaxsimrl train-foam: {stop_word(stop)}; {_stopped_text(run, plan)}\n")
+    return exit_code(stop)
 
 
 def _stopped_text(run: Any, plan: FoamPlan) -> str:
@@ -157,22 +157,21 @@ def _stopped_text(run: Any, plan: FoamPlan) -> str:
     return "stopped before the first update was saved; nothing to resume"
 
 
-def _interrupt_handler(run: Any, plan: FoamPlan) -> Callable[[int], None]:
-    """What a Ctrl-C during an update does, at once (runs.training.interrupts_deferred): the first is
-    acknowledged and stops the run after the update in flight is saved; the second ends the process
-    now, as a kill would (the solvers die with their workers, everything on disk is whole), and the run
-    resumes from its last checkpoint. (train_foam stops the live bar before the second.)"""
-    def react(count: int) -> None:
-        if count == 1:
-            sys.stderr.write(f"jaxsimrl train-foam: stopping after this update (waiting for {plan.pool} "
-                             f"solver worker(s))... press Ctrl-C again to stop now, losing the update in "
-                             f"flight\n")
-            sys.stderr.flush()
-            return
-        sys.stderr.write(f"jaxsimrl train-foam: stopped now, without the update in flight; "
-                         f"{_stopped_text(run, plan)}\n")
+def _interrupt_handler(run: Any, plan: FoamPlan) -> Callable[[int, int], None]:
+    """What a Ctrl-C or SIGTERM during an update does, at once (runs.training.interrupts_deferred): end
+    the process now, as a kill would. Waiting for the update in flight would let every solver run on
+    for the rest of it, hours on a big mesh; instead the workers see their driver gone and kill their
+    solvers within a second (foam_bridge.backends.local), everything on disk is whole, and --resume
+    redoes the update from the last checkpoint, replaying the episodes in flight. (train_foam stops the
+    live bar first.)"""
+    def react(count: int, signum: int) -> None:
+        if count > 1:
+            return  # the first is already ending the process
+        word = "SIGTERM" if signum == signal.SIGTERM else "Ctrl-C"
+        sys.stderr.write(f"jaxsimrl train-foam: stopped now ({word}); the update in flight is redone on "
+                         f"--resume; {_stopped_text(run, plan)}\n")
         sys.stderr.flush()
-        os._exit(INTERRUPTED)
+        os._exit(128 + signum)
 
     return react
 

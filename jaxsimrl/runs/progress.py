@@ -118,7 +118,7 @@ class FoamProgress:
         self.stop()
 
     def stop(self) -> None:
-        """End the live bar (idempotent), e.g. before the process leaves on a second Ctrl-C."""
+        """End the live bar (idempotent), e.g. before the process leaves on a Ctrl-C."""
         if self._progress is not None:
             self._progress.stop()
 

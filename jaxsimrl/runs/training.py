@@ -25,39 +25,44 @@ import numpy as np
 
 from jaxsimrl.runs.checkpoint import Checkpoints
 from jaxsimrl.runs.run_dir import MetricsLog, Row, RunDir, rows_with_episodes, summarise
+from jaxsimrl.runs.signals import STOP_SIGNALS, interrupt_for
 
 ChunkHook = Callable[[int], None]
 StopTest = Callable[[], bool]
-#: Called at once with the number of Ctrl-Cs received during a chunk (1, 2, ...); see interrupts_deferred.
-InterruptHook = Callable[[int], None]
+#: Called at once with the number of stop signals (Ctrl-C, SIGTERM) received during a chunk (1, 2, ...)
+#: and the signal; see interrupts_deferred.
+InterruptHook = Callable[[int, int], None]
 
 
 @contextlib.contextmanager
 def interrupts_deferred(on_interrupt: InterruptHook | None = None) -> Iterator[None]:
-    """Hold SIGINT back until the block is done, then raise KeyboardInterrupt (main thread only).
+    """Hold SIGINT and SIGTERM back until the block is done, then raise KeyboardInterrupt (Terminated
+    if one was SIGTERM: jaxsimrl.runs.signals); main thread only.
 
-    ``on_interrupt(count)`` is called at once for every SIGINT, from a thread of its own: the main
-    thread may be inside a jitted call, where Python runs no signal handler until the call returns
-    (the signal's byte arrives through ``signal.set_wakeup_fd``). It may acknowledge the first and end
-    the process on the second."""
+    ``on_interrupt(count, signum)`` is called at once for every such signal, from a thread of its own:
+    the main thread may be inside a jitted call, where Python runs no signal handler until the call returns
+    (the signal's byte arrives through ``signal.set_wakeup_fd``). It may end the process there (a host
+    env whose solvers must not run on to the end of the chunk)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
     received: list[int] = []
-    previous = signal.signal(signal.SIGINT, lambda signum, frame: received.append(signum))
+    previous = {signum: signal.signal(signum, lambda signum, frame: received.append(signum))
+                for signum in STOP_SIGNALS}
     try:
         with _interrupt_watcher(on_interrupt):
             yield
     finally:
-        signal.signal(signal.SIGINT, previous)
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
     if received:
-        raise KeyboardInterrupt
+        raise interrupt_for(received)
 
 
 @contextlib.contextmanager
 def _interrupt_watcher(on_interrupt: InterruptHook | None) -> Iterator[None]:
-    """A thread that calls ``on_interrupt`` as soon as the C-level signal handler writes SIGINT's byte to
-    the wakeup pipe (nothing without a hook)."""
+    """A thread that calls ``on_interrupt`` as soon as the C-level signal handler writes a stop signal's
+    byte to the wakeup pipe (nothing without a hook)."""
     if on_interrupt is None:
         yield
         return
@@ -68,9 +73,9 @@ def _interrupt_watcher(on_interrupt: InterruptHook | None) -> Iterator[None]:
         count = 0
         while data := os.read(read_fd, 64):  # b"" once write_fd is closed
             for signum in data:
-                if signum == signal.SIGINT:
+                if signum in STOP_SIGNALS:
                     count += 1
-                    on_interrupt(count)
+                    on_interrupt(count, signum)
 
     watcher = threading.Thread(target=watch, name="interrupt-watcher", daemon=True)
     watcher.start()
@@ -188,13 +193,14 @@ def train(session: Session, state: Any, done: int, progress: Any, on_chunk: Chun
     returns the final state. ``progress`` is a TrainingProgress or anything with its ``update``.
 
     ``on_chunk(updates_done)`` is called after each chunk is on disk (tests use it to stop a run at a
-    chosen point, as a crash would). ``on_interrupt(count)`` is told of each Ctrl-C during a chunk at
-    once (see :func:`interrupts_deferred`).
+    chosen point, as a crash would). ``on_interrupt(count, signum)`` is told of each Ctrl-C or SIGTERM
+    during a chunk at once (see :func:`interrupts_deferred`).
     """
     trainer, log = session.trainer, session.log
     while done < trainer.num_updates and not (until is not None and until()):
-        # Ctrl-C is held back for the whole chunk: a jitted call cannot be interrupted anyway (the
-        # signal waits until it returns), and this way the chunk in flight is saved, not dropped.
+        # Ctrl-C and SIGTERM are held back for the whole chunk: a jitted call cannot be interrupted
+        # anyway (the signal waits until it returns), and this way the chunk in flight is saved, not
+        # dropped, unless on_interrupt ends the process first.
         with interrupts_deferred(on_interrupt):
             state, done, rows = _run_and_save(session, state, done)
         progress.update(log.env_steps, rows[-1]["steps_per_s"], latest_return(log.rows), done,

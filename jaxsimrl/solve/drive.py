@@ -8,10 +8,10 @@ recorded for the report.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -33,15 +33,35 @@ class ControlledRun:
     wall_time_s: float = 0.0
 
 
-def drive(cfg: FoamEnvConfig, policy: Callable[[], Any], fallback: list[float],
-          obs_factor: Callable[[float], float], watchdog: WatchdogSettings,
-          say: Callable[[str], None], make_env: Callable[[Any, Path, int], Any] | None = None
-          ) -> ControlledRun:
-    """Run one episode of ``cfg`` with the policy ``policy()`` returns (its deterministic action; asked
-    for once the worker has built the case, so that loading it overlaps that), switching to ``fallback``
-    when the watchdog fires. Bad input (the env rejects the case): one-line ValueError. ``cfg``'s case
-    must have been checked already (jaxsimrl.solve.settings.solve_config does); ``make_env`` builds the
-    worker's env (jaxsimrl.solve.settings.CheckedCase: from that check's build)."""
+class Actor(Protocol):
+    """What sets the factors at each step: ``act(obs, residuals)``, residuals None before the first step
+    (a learned policy acts on the observation, jaxsimrl.solve.rules on the residuals)."""
+
+    def act(self, obs: Any, residuals: Mapping[str, float] | None) -> list[float]: ...
+
+
+class LearnedActor:
+    """A trained policy's deterministic action on the observation, its inlet term scaled by ``scale``
+    (jaxsimrl.solve.settings.observation_factor); its recurrent state kept from step to step."""
+
+    def __init__(self, policy: Any, scale: float) -> None:
+        self.policy, self.scale, self.state = policy, scale, None
+
+    def act(self, obs: Any, residuals: Mapping[str, float] | None) -> list[float]:
+        seen = np.array(obs, dtype=np.float32)
+        seen[0] *= self.scale
+        action, self.state = self.policy.act(seen, self.state, deterministic=True)
+        return [float(a) for a in np.asarray(action).reshape(-1)]
+
+
+def drive(cfg: FoamEnvConfig, actor: Callable[[float], Actor], fallback: list[float],
+          watchdog: WatchdogSettings, say: Callable[[str], None],
+          make_env: Callable[[Any, Path, int], Any] | None = None) -> ControlledRun:
+    """Run one episode of ``cfg`` with the actor ``actor(inlet_speed)`` returns (asked for once the worker
+    has built the case, so that loading a policy overlaps that), switching to ``fallback`` when the
+    watchdog fires. Bad input (the env rejects the case): one-line ValueError. ``cfg``'s case must have
+    been checked already (jaxsimrl.solve.settings.solve_config does); ``make_env`` builds the worker's env
+    (jaxsimrl.solve.settings.CheckedCase: from that check's build)."""
     from foam_bridge.backends import BAD_INPUT_ERRORS, Request
     from foam_bridge.backends.local import LocalBackend
 
@@ -54,7 +74,7 @@ def drive(cfg: FoamEnvConfig, policy: Callable[[], Any], fallback: list[float],
             raise ValueError(reply.error) if reply.kind in BAD_INPUT_ERRORS else RuntimeError(reply.error)
         obs, info = reply.value
         run.inlet_speed = float(info.get("inlet_velocity", float("nan")))
-        _loop(backend, Request, cfg, policy(), fallback, obs, obs_factor(run.inlet_speed),
+        _loop(backend, Request, actor(run.inlet_speed), fallback, obs,
               Watchdog(dict(cfg.convergence), watchdog), run, say)
     finally:
         backend.close()
@@ -62,15 +82,12 @@ def drive(cfg: FoamEnvConfig, policy: Callable[[], Any], fallback: list[float],
     return run
 
 
-def _loop(backend: Any, request: Any, cfg: FoamEnvConfig, policy: Any, fallback: list[float], obs: Any,
-          scale: float, dog: Watchdog, run: ControlledRun, say: Callable[[str], None]) -> None:
-    state = None
+def _loop(backend: Any, request: Any, actor: Actor, fallback: list[float], obs: Any, dog: Watchdog,
+          run: ControlledRun, say: Callable[[str], None]) -> None:
+    residuals = None
     while True:
         if dog.fired is None:
-            seen = np.array(obs, dtype=np.float32)
-            seen[0] *= scale
-            action, state = policy.act(seen, state, deterministic=True)
-            action, source = [float(a) for a in np.asarray(action).reshape(-1)], "controller"
+            action, source = actor.act(obs, residuals), "controller"
         else:
             action, source = list(fallback), "own factors (watchdog)"
         reply = backend.run([request(0, "step", {"action": np.asarray(action)})])[0]
@@ -81,14 +98,14 @@ def _loop(backend: Any, request: Any, cfg: FoamEnvConfig, policy: Any, fallback:
             return
         obs, _, terminated, truncated, info = reply.value
         run.iterations, run.outcome = int(info["iterations"]), info["outcome"]
-        run.cause = info.get("cause", "")
-        run.steps.append({**step, "to_iteration": run.iterations, "residuals": info["residuals"],
+        run.cause, residuals = info.get("cause", ""), info["residuals"]
+        run.steps.append({**step, "to_iteration": run.iterations, "residuals": residuals,
                           "outcome": run.outcome})
         say(f"  {run.iterations:5d} it  factors {', '.join(f'{a:.3f}' for a in action)}  ({source})")
         if terminated or truncated:
             run.record = dict(info.get("episode") or {})
             return
-        reason = dog.check(info["residuals"])
+        reason = dog.check(residuals)
         if reason:
             run.events.append({"kind": "watchdog", "at_iteration": run.iterations, "reason": reason,
                                "then": f"the case's own factors {fallback} from the live fields"})

@@ -72,9 +72,11 @@ def _percent(fraction: float | None) -> str:
 
 
 def write_status(out: Path, status: str, case: Path, error: str = "") -> None:
-    """solve.json before (or instead of) the report: what the directory holds."""
+    """solve.json before (or instead of) the report: what the directory holds (``error``: why it failed,
+    or for "interrupted" how it was stopped)."""
     holds = {"incomplete": "a solve in progress or killed: no result yet; the case files may be partial",
-             "interrupted": "a solve stopped by Ctrl-C: no result", "failed": f"no result: {error}"}[status]
+             "interrupted": f"a solve {error or 'interrupted'} before its end: no result; every solver it "
+                            f"started was stopped", "failed": f"no result: {error}"}[status]
     atomic_write_json(out / SOLVE_JSON, {"status": status, "case": str(case), "out": str(out),
                                          "holds": holds, "time_utc": _now()})
 

@@ -20,12 +20,14 @@ from foam_bridge.env import FAILURES
 from foam_bridge.errors import OpenFOAMNotFoundError
 from foam_bridge.export import export_case
 from foam_bridge.logparse import solved_field_names
+from jaxsimrl.runs.signals import stop_word
 from jaxsimrl.solve.agreement import compare_results
 from jaxsimrl.solve.controller import BackgroundLoad, Controller, as_controller, policy_env_config
-from jaxsimrl.solve.drive import ControlledRun, drive
+from jaxsimrl.solve.drive import ControlledRun, LearnedActor, drive
 from jaxsimrl.solve.fields import observed_mapping
 from jaxsimrl.solve.own import OwnProcess, OwnRun
 from jaxsimrl.solve.report import SolveReport, build_report, preload_plotting, write_report, write_status
+from jaxsimrl.solve.rules import RulePolicy
 from jaxsimrl.solve.settings import (
     DEFAULT_MAX_ITERATIONS,
     CheckedCase,
@@ -47,12 +49,13 @@ def solve_case(case: str | Path, out: str | Path, policy: Any = None,
                watchdog: WatchdogSettings | None = None,
                action_box: tuple[Sequence[float], Sequence[float]] | None = None,
                step_timeout_s: float = 300.0, inlet_patch: str = "inlet",
-               say: Callable[[str], None] | None = None) -> SolveReport:
+               say: Callable[[str], None] | None = None, rule: str | None = None) -> SolveReport:
     """Run ``case`` with the controller (``policy``: a run directory, a :class:`Controller`, a policy from
     ``jaxsimrl.load_policy``, or None for the shipped one) into ``out``; see the module docstring. Bad
     input (a missing or decomposed case, a non-empty ``out``, a case the bridge cannot drive, a bad
     policy): one-line ValueError before any result is claimed. ``action_box`` replaces the case's own box
-    (experiments only); ``inlet_patch``: the patch whose mean |U|^2 the controller observes."""
+    (experiments only); ``inlet_patch``: the patch whose mean |U|^2 the controller observes; ``rule``: a
+    no-training rule (a key of jaxsimrl.solve.rules.RULES) instead of ``policy``."""
     say = say or (lambda text: None)
     case, out = _check_paths(case, out)
     started = time.monotonic()
@@ -63,9 +66,9 @@ def solve_case(case: str | Path, out: str | Path, policy: Any = None,
     try:
         report = _solve(case, out, policy, compare, compare_constant, max_iterations, confirm_alpha_u,
                         watchdog or WatchdogSettings(), (action_box, step_timeout_s, inlet_patch), say,
-                        started, others)
-    except KeyboardInterrupt:
-        write_status(out, "interrupted", case)
+                        started, others, rule)
+    except KeyboardInterrupt as stop:  # Ctrl-C or SIGTERM: the finally blocks below stop every solver
+        write_status(out, "interrupted", case, stop_word(stop))
         raise
     except (ValueError, OpenFOAMNotFoundError) as err:  # bad input, before any result: leave nothing
         for process in others:
@@ -107,14 +110,14 @@ def _check_paths(case: str | Path, out: str | Path) -> tuple[Path, Path]:
 def _solve(case: Path, out: Path, policy: Any, compare: bool, constant: Sequence[float] | None,
            max_iterations: int | None, confirm: float | None, watchdog: WatchdogSettings,
            env: tuple[Any, float, str], say: Callable[[str], None], started: float,
-           others: list[OwnProcess]) -> SolveReport:
+           others: list[OwnProcess], rule: str | None) -> SolveReport:
     # What waits on what: the controller loads (JAX, its acting arrays, the first action compiled) in a
     # thread from here on, beside the case check (copy, mesh, one SIMPLE iteration: once, the controlled
     # run's env starts from its build) and the worker's start; the first step waits for both, every
     # later one only for the solver. Then the thread imports the report's plotting.
     phases: dict[str, float] = {}
     mark = time.monotonic()
-    policy = as_controller(policy)
+    policy = as_controller(policy) if rule is None else rule_controller(rule)
     loading = None if isinstance(policy, Controller) else BackgroundLoad(policy, then=preload_plotting)
     trained = policy.policy.env_params if isinstance(policy, Controller) else policy_env_config(policy)
     settings = read_case_settings(case)
@@ -156,17 +159,29 @@ def _controlled(cfg: Any, trained: Any, settings: Any, controller: Any, watchdog
                 say: Callable[[str], None], checked: CheckedCase) -> ControlledRun:
     """The controlled run, or none (outcome "not run") when the controller does not apply to the case.
     ``controller``: a Controller, or its BackgroundLoad (waited for once the worker has built the case)."""
+    rule = controller.policy if isinstance(controller, Controller) else None
+    if isinstance(rule, RulePolicy):  # a rule reads residuals only: it applies to any case
+        fallback = own_action(settings, cfg, len(cfg.action_low))
+        made = rule.for_case(dict(cfg.convergence), fallback, cfg.action_low, cfg.action_high)
+        return drive(cfg, lambda speed: made, fallback, rule.watchdog(watchdog), say, checked)
     skip = not_applicable(trained, settings, checked.info.solved_fields)
     if skip is not None:
         say(skip)
         return ControlledRun(outcome="not run", events=[{"kind": "not applicable", "at_iteration": 0,
                                                          "reason": skip, "then": "the case's own run"}])
-    def policy() -> Any:
-        return (controller if isinstance(controller, Controller) else controller.result()).policy
+    def actor(speed: float) -> LearnedActor:
+        loaded = controller if isinstance(controller, Controller) else controller.result()
+        return LearnedActor(loaded.policy, observation_factor(trained, speed))
 
     fallback = own_action(settings, cfg, len(cfg.action_low))
-    return drive(cfg, policy, fallback, lambda speed: observation_factor(trained, speed), watchdog, say,
-                 checked)
+    return drive(cfg, actor, fallback, watchdog, say, checked)
+
+
+def rule_controller(name: str) -> Controller:
+    """A no-training rule (jaxsimrl.solve.rules) as solve's controller; its provenance names it."""
+    rule = RulePolicy(name)
+    return Controller(rule, {"rule": name, "interval": rule.env_params.interval,
+                             "about": "no training: jaxsimrl.solve.rules"})
 
 def _start_comparisons(case: Path, out: Path, compare: bool, constant: Sequence[float] | None, flat: bool,
                        others: list[OwnProcess]) -> dict[str, OwnProcess]:

@@ -65,14 +65,16 @@ def _say(text: str) -> None:
 
 def train_foam(plan: FoamPlan, run: Any, *, tensorboard: bool = False,
                on_chunk: Callable[[int], None] | None = None,
-               on_interrupt: Callable[[int], None] | None = None) -> dict[str, Any]:
+               on_interrupt: Callable[[int, int], None] | None = None) -> dict[str, Any]:
     """Train ``plan`` into ``run`` (a RunDir, created or resumed); returns the final summary.
 
     ``on_chunk(updates_done)`` is told of each update once it is on disk (a test hook);
-    ``on_interrupt(count)`` of each Ctrl-C during an update (the live progress bar is stopped before the
-    second). Raises foam_bridge's CaseError / ClusterError / OpenFOAMNotFoundError for a case or setup
-    that cannot run, ResumeError for a checkpoint that does not fit, HostEnvError for a broken host side,
-    KeyboardInterrupt after a saved update.
+    ``on_interrupt(count, signum)`` of each Ctrl-C or SIGTERM during an update, at once (the live
+    progress bar is stopped first): the solvers run until the update ends unless the hook ends the
+    process, as train-foam's does (its workers then kill their solvers: foam_bridge.backends.local).
+    Raises foam_bridge's CaseError / ClusterError / OpenFOAMNotFoundError for a case or setup that cannot
+    run, ResumeError for a checkpoint that does not fit, HostEnvError for a broken host side,
+    KeyboardInterrupt (Terminated for SIGTERM) after a saved update.
     """
     import jax
 
@@ -165,17 +167,16 @@ def _async_busy_share(vec: Any, plan: FoamPlan) -> Callable[[], float] | None:
     return lambda: vec.busy_s / (plan.pool * max(time.monotonic() - started, 1e-9))
 
 
-def _stopping_progress(progress: Any, on_interrupt: Callable[[int], None] | None
-                       ) -> Callable[[int], None] | None:
-    """``on_interrupt`` with the live bar stopped before the second Ctrl-C (that one ends the process:
-    the terminal is given back first)."""
+def _stopping_progress(progress: Any, on_interrupt: Callable[[int, int], None] | None
+                       ) -> Callable[[int, int], None] | None:
+    """``on_interrupt`` with the live bar stopped first (the hook may end the process: the terminal is
+    given back before)."""
     if on_interrupt is None:
         return None
 
-    def react(count: int) -> None:
-        if count > 1:
-            progress.stop()
-        on_interrupt(count)
+    def react(count: int, signum: int) -> None:
+        progress.stop()
+        on_interrupt(count, signum)
 
     return react
 
