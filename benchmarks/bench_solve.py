@@ -7,7 +7,8 @@ residual-rule`` with the no-training rule, jaxsimrl.solve.rules.)
 
 Prints one row per case: iterations and wall time of the controlled run and of the case's own settings,
 their ratios, solve's overhead beyond the solver's own work (and its fixed cost in seconds, with the
-phases of solve.json), and whether a fallback fired. Nothing is
+phases of solve.json), whether a fallback fired, and whether the two converged results agree (the worst
+field and function-object value; the whole ``agreement`` of solve.json is in the row). Nothing is
 tuned on these cases. Appends the rows as JSON lines to OUT/rows.jsonl.
 """
 
@@ -19,6 +20,7 @@ import shutil
 from pathlib import Path
 
 from jaxsimrl.solve import solve_case
+from jaxsimrl.solve.agreement import summary_line
 
 TUTORIALS = Path("/usr/share/doc/openfoam-examples/examples/incompressible/simpleFoam")
 
@@ -43,7 +45,8 @@ def bench(name: str, root: Path, policy: Path | None = None, rule: str | None = 
             # solve's fixed cost: its wall time beyond the controlled solver's busy time, and its phases
             "fixed_s": round(result["wall_time_s"] - result["solver_busy_s"], 2),
             "phases": {name: round(value, 2) for name, value in result.get("phases", {}).items()},
-            "fallback": [event["kind"] for event in data["fallback"]], "fields_from": result["fields_from"]}
+            "fallback": [event["kind"] for event in data["fallback"]], "fields_from": result["fields_from"],
+            "agreement_line": summary_line("own", own["agreement"]), "agreement": own["agreement"]}
 
 
 def _percent(fraction: float | None) -> float | None:

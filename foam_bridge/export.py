@@ -22,7 +22,7 @@ from foam_bridge.episode_case import STATE_FIELD
 from foam_bridge.fields import time_directories
 from foam_bridge.template import copy_case
 
-__all__ = ["LOG_NAME", "POST_PROCESSING", "export_case"]
+__all__ = ["LOG_NAME", "POST_PROCESSING", "export_case", "latest_time"]
 
 #: The solver log of the run, as written by foam_bridge.solver.
 LOG_NAME = "log.simpleFoam"
@@ -46,7 +46,7 @@ def export_case(episode: Path, source: Path, out: Path, log: Path | None = None,
     if not (mesh / "boundary").is_file():  # meshed by the bridge (blockMesh): the run's own mesh
         shutil.rmtree(mesh, ignore_errors=True)
         shutil.copytree((episode / "constant" / "polyMesh").resolve(), mesh)
-    latest = _latest_time(episode, start_time)
+    latest = latest_time(episode, start_time)
     if latest is not None:
         shutil.copytree(latest, staging / latest.name)
         for leftover in (staging / latest.name).glob(f"{STATE_FIELD}*"):
@@ -65,7 +65,7 @@ def export_case(episode: Path, source: Path, out: Path, log: Path | None = None,
     return None if latest is None else latest.name
 
 
-def _latest_time(case: Path, after: float = 0) -> Path | None:
-    """The case's latest time directory after ``after``, None if there is none."""
+def latest_time(case: Path, after: float = 0) -> Path | None:
+    """The case's latest time directory after ``after`` (a finished run's fields), None if there is none."""
     times = [path for value, path in time_directories(case) if value > after]
     return times[-1] if times else None

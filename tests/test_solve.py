@@ -29,9 +29,11 @@ from foam_bridge.config import FoamEnvConfig
 from foam_bridge.logparse import LogParser
 from foam_bridge.openfoam import BRIDGE_MARK, find_openfoam
 from jaxsimrl import load_policy
-from jaxsimrl.solve import DEFAULT_CONTROLLER, Controller, solve_case
+from jaxsimrl.solve import DEFAULT_CONTROLLER, Controller, SolveReport, solve_case
+from jaxsimrl.solve.agreement import compare_results, summary_line, tolerances
 from jaxsimrl.solve.controller import policy_env_config
 from jaxsimrl.solve.criterion import parse_residual, resolve
+from jaxsimrl.solve.own import OwnProcess
 from jaxsimrl.solve.settings import solve_config
 from jaxsimrl.solve.watchdog import Watchdog
 
@@ -292,11 +294,30 @@ def test_watchdog_fires_on_growth_and_on_stall_only() -> None:
     assert stalled.check({"U": 1e-9}) is None  # it fires once
 
 
-def test_solve_pitz_daily_gives_a_normal_converged_case(tmp_path: Path) -> None:
-    case = _pitz_daily(tmp_path)
+#: Function objects a user might add to pitzDaily, for solve --compare's agreement to compare.
+PITZ_DAILY_FUNCTIONS = """
+    #includeFunc fieldMinMax(U,p)
+    #includeFunc patchAverage(name=inlet,p)
+    probes { type probes; libs (sampling); fields (p U); probeLocations ((0.01 0 0) (0.1 0.01 0)); }
+    forces { type forces; libs (forces); patches (lowerWall); rho rhoInf; rhoInf 1; CofR (0 0 0); }
+"""
+
+
+@pytest.fixture(scope="module")
+def pitz_daily_solved(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, str, SolveReport]:
+    """(case, out, the case's tree hash before, report) of one ``solve --compare`` of pitzDaily with
+    PITZ_DAILY_FUNCTIONS added to its own streamlines."""
+    case = _pitz_daily(tmp_path_factory.mktemp("solved"))
+    control = case / "system" / "controlDict"
+    control.write_text(control.read_text().replace("#includeFunc streamlines\n",
+                                                   "#includeFunc streamlines\n" + PITZ_DAILY_FUNCTIONS))
     before = _tree_hash(case)
-    out = tmp_path / "out"
-    report = solve_case(case, out, compare=True, step_timeout_s=120)
+    out = case.parent / "out"
+    return case, out, before, solve_case(case, out, compare=True, step_timeout_s=120)
+
+
+def test_solve_pitz_daily_gives_a_normal_converged_case(pitz_daily_solved) -> None:
+    case, out, before, report = pitz_daily_solved
     assert _tree_hash(case) == before  # the user's case is never modified
     data = json.loads((out / "solve.json").read_text())
     assert data["status"] == "complete" and report.converged and data["result"]["converged"]
@@ -314,6 +335,43 @@ def test_solve_pitz_daily_gives_a_normal_converged_case(tmp_path: Path) -> None:
     assert math.isclose(own["ratio_iterations"], result["iterations"] / own["iterations"])
     assert (out / result["time_directory"] / "U").is_file() and (out / "log.simpleFoam").is_file()
     _check_normal_case(out, result["time_directory"])
+
+
+def test_solve_compare_says_the_result_agrees_with_own(pitz_daily_solved) -> None:
+    _, out, _, report = pitz_daily_solved
+    agreement = json.loads((out / "solve.json").read_text())["compare"]["own"]["agreement"]
+    assert agreement == report.data["compare"]["own"]["agreement"]
+    criterion = report.data["settings"]["criterion"]
+    assert agreement["agree"] is True
+    assert list(agreement["tolerance"].values()) == list(tolerances(criterion))
+    assert set(agreement["fields"]) == {"U", "p", "k", "epsilon"} and not agreement["notes"]
+    assert all(0 < entry["value"] <= entry["tolerance"] for entry in agreement["fields"].values())
+    objects = agreement["function_objects"]  # forces, moments, probes, min/max, inlet pressure
+    assert {name.split(" ")[0] for name in objects} == {
+        "forces/force.dat", "forces/moment.dat", "probes/p", "probes/U", "fieldMinMax(U,p)/fieldMinMax.dat",
+        "patchAverage(name=inlet,p)/surfaceFieldValue.dat"}
+    assert all(entry["ok"] for entry in objects.values())
+    assert "    results agree with own: fields max rel. L2 " in report.summary()
+
+
+def test_an_own_run_converged_to_a_looser_criterion_is_flagged(pitz_daily_solved, tmp_path: Path) -> None:
+    case, out, _, report = pitz_daily_solved
+    loose = Path(shutil.copytree(case, tmp_path / "loose"))  # the criterion 10x looser: it stops early
+    solution = loose / "system" / "fvSolution"
+    solution.write_text(solution.read_text().replace("1e-2;", "1e-1;").replace("1e-3;", "1e-2;"))
+    process = OwnProcess(loose, tmp_path / "early", "early", 120.0, None, False)  # spawned: JAX is loaded
+    try:
+        early = process.result(150.0)
+    finally:
+        process.stop()
+    assert early.converged and early.iterations < report.data["compare"]["own"]["iterations"]
+    agreement = compare_results(out, Path(early.case), ["U", "p", "k", "epsilon"],
+                                report.data["settings"]["criterion"], (True, True), "early")
+    assert agreement["agree"] is False and agreement["fields"]["p"]["ok"] is False
+    line = summary_line("early", agreement)
+    assert line.startswith("results DIFFER from early: ") and "fields max rel. L2 " in line
+    field_tolerance = tolerances(report.data["settings"]["criterion"])[0]
+    assert line.split("fields max rel. L2 ")[1].split(";")[0].endswith(f" (p) > tol {field_tolerance:.0e}")
 
 
 def test_the_controlled_run_starts_from_the_check_build(tmp_path: Path) -> None:
@@ -373,6 +431,7 @@ def test_solve_a_coarse_step_case_with_a_loaded_policy(tmp_path: Path) -> None:
     assert data["controller"]["checkpoint"] == SHIPPED["checkpoint"] and not data["controller"]["default"]
     constant = data["compare"]["constant"]
     assert constant["converged"] and (out / "compare" / "constant" / "log.simpleFoam").is_file()
+    assert isinstance(constant["agreement"]["agree"], bool) and "with constant" in report.summary()
     assert "constant factors" in (out / "compare" / "constant" / "system" / "fvSolution").read_text()
     assert "constant factors" not in (out / "system" / "fvSolution").read_text()
     assert (out / "constant" / "polyMesh" / "boundary").is_file()  # meshed by the bridge, kept as a real mesh
@@ -398,9 +457,13 @@ def test_a_plain_simple_case_runs_with_its_own_settings(tmp_path: Path) -> None:
     control = case / "system" / "controlDict"
     control.write_text(control.read_text().replace("endTime         2000;", "endTime         300;"))
     out = tmp_path / "out"
-    report = solve_case(case, out, step_timeout_s=120)
+    report = solve_case(case, out, compare=True, step_timeout_s=120)  # the own run is the comparison's
     data = json.loads((out / "solve.json").read_text())
     assert [event["kind"] for event in data["fallback"]] == ["not applicable"]
+    agreement = data["compare"]["own"]["agreement"]  # out holds the own run's result, not converged in 300
+    reason = "the own run (the controller's result is its) did not converge"
+    assert agreement == {"agree": None, "same_run": True, "reason": reason}
+    assert f"    no agreement figure with own: {reason}" in report.summary().splitlines()
     assert "SIMPLEC" in data["fallback"][0]["reason"] and not data["steps"]
     assert data["result"]["fields_from"] == "the case's own settings (the controller does not apply)"
     assert data["result"]["iterations"] == report.iterations <= 300

@@ -6,7 +6,8 @@ field observed for each field the controller observes), the result (outcome, con
 confirmation check, iterations, wall time, the solver's CPU time, where the fields come from, solve's
 overhead beyond the solver's own work), every step's factors and residuals, the fallback events, the
 convergence checks, the per-iteration residual histories and, with --compare, the comparison runs side
-by side with the ratios controller / own.
+by side with the ratios controller / own and whether their converged results agree with the
+controller's (``agreement``, jaxsimrl.solve.agreement).
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from typing import Any
 from foam_bridge.atomic import atomic_write_bytes
 from foam_bridge.logparse import LogParser, field_residual
 from jaxsimrl.runs.atomic import atomic_write_json
+from jaxsimrl.solve.agreement import summary_line
 from jaxsimrl.solve.criterion import describe
 
 SOLVE_JSON = "solve.json"
@@ -62,6 +64,8 @@ class SolveReport:
                          f"{other['iterations']} iterations, {other['wall_time_s']:.1f} s; "
                          f"controller/{name}: iterations {other['ratio_iterations']:.3f}, "
                          f"wall time {other['ratio_wall_time']:.3f}")
+            if "agreement" in other:
+                lines.append(f"    {summary_line(name, other['agreement'])}")
         return "\n".join(lines)
 
 

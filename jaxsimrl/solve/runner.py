@@ -21,7 +21,9 @@ from typing import Any
 from foam_bridge.env import FAILURES
 from foam_bridge.errors import OpenFOAMNotFoundError
 from foam_bridge.export import export_case
+from foam_bridge.logparse import solved_field_names
 from jaxsimrl.runs.signals import stop_word
+from jaxsimrl.solve.agreement import compare_results
 from jaxsimrl.solve.controller import BackgroundLoad, Controller, as_controller, policy_env_config
 from jaxsimrl.solve.criterion import (
     Residual,
@@ -172,6 +174,10 @@ def _solve(case: Path, out: Path, policy: Any, compare: bool, constant: Sequence
     results = {name: process.result(24 * 3600.0) for name, process in comparisons.items()}
     report = build_report(case, out, controller, cfg, run, rescue, time_name, wall, results, episode,
                           observed if run.outcome != "not run" else None)
+    mark = time.monotonic()
+    _add_agreement(report, out, results, cfg.convergence, solved_field_names(checked.info.solved_fields),
+                   "own" if rescue is not None else None)
+    phases["agreement_s"] = time.monotonic() - mark
     report.data["result"]["phases"] = phases
     report.data["settings"]["criterion"] = reported(cfg.convergence)
     report.data["settings"]["criterion_from"] = criterion_from
@@ -240,6 +246,16 @@ def _start_comparisons(case: Path, out: Path, compare: bool, constant: Sequence[
         started[name] = OwnProcess(case, dest, name, 24 * 3600.0, factors, own.flat, own.criterion, own.start)
         others.append(started[name])
     return started
+
+
+def _add_agreement(report: SolveReport, out: Path, results: dict[str, OwnRun], criterion: dict[str, float],
+                   fields: list[str], rescued_by: str | None) -> None:
+    """Each comparison's ``agreement``: is the result in ``out`` the same answer as its run's
+    (jaxsimrl.solve.agreement); ``rescued_by``: the comparison whose run ``out`` holds (_own_rescue)."""
+    for name, other in results.items():
+        report.data["compare"][name]["agreement"] = compare_results(
+            out, Path(other.case), fields, criterion, (report.converged, other.converged), name,
+            same_run=name == rescued_by)
 
 
 def _own_rescue(case: Path, out: Path, comparisons: dict[str, OwnProcess], run: Any, own: Own,
