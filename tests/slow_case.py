@@ -51,6 +51,22 @@ def iterations_in(log: Path) -> int:
         return 0
 
 
+def episode_progress(root: Path) -> list[int]:
+    """The iterations each episode's solver under ``root`` has started (the case checks' one-iteration dry
+    runs left out); a scratch directory that vanishes during the walk (a check's) is skipped."""
+    try:
+        logs = [log for log in root.rglob("log.simpleFoam") if "episode" in log.parts]
+    except FileNotFoundError:
+        return []
+    return [iterations_in(log) for log in logs]
+
+
+def all_into_a_step(root: Path, solvers: int, iterations: int = 3) -> bool:
+    """Whether ``solvers`` episode solvers run under ``root``, each ``iterations`` into its first step."""
+    progress = episode_progress(root)
+    return len(progress) == solvers and min(progress) >= iterations
+
+
 def wait_until(condition: Callable[[], bool], timeout_s: float, what: str) -> None:
     """Poll ``condition`` every 0.1 s; fail the test naming ``what`` after ``timeout_s``."""
     deadline = time.monotonic() + timeout_s

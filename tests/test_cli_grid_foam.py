@@ -17,7 +17,7 @@ import matplotlib.text
 import numpy as np
 import pytest
 from foam_marks import needs_openfoam
-from slow_case import STOP_LIMIT_S, iterations_in, seconds_until, wait_until
+from slow_case import STOP_LIMIT_S, all_into_a_step, episode_progress, seconds_until, wait_until
 
 from foam_bridge.config import MESH_SCALE_USABLE_MIN, FoamEnvConfig
 from foam_bridge.grid import (
@@ -308,14 +308,11 @@ def test_a_stopped_grid_on_a_refined_mesh_leaves_no_solver_within_5_s(tmp_path, 
         env={**os.environ, "TMPDIR": str(tmp)}, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
         start_new_session=True)
 
-    def logs() -> list[int]:
-        return [iterations_in(log) for log in tmp.rglob("episode/log.simpleFoam")]
-
     try:
-        wait_until(lambda: len(logs()) == 2 and min(logs()) >= 3 or process.poll() is not None, 300,
+        wait_until(lambda: all_into_a_step(tmp, 2) or process.poll() is not None, 300,
                    "both solvers to be 3 iterations into a step")
         assert process.poll() is None, process.communicate()
-        assert max(logs()) < 70  # the step has most of it to go
+        assert max(episode_progress(tmp)) < 70  # the step has most of it to go
         if sig == signal.SIGINT:
             os.killpg(process.pid, sig)
         else:

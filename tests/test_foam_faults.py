@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 from foam_marks import needs_openfoam
 from foamlib import FoamFile
-from slow_case import STOP_LIMIT_S, iterations_in, seconds_until, slow_pitz_daily, wait_until
+from slow_case import STOP_LIMIT_S, episode_progress, seconds_until, slow_pitz_daily, wait_until
 
 from foam_bridge import solver as foam_solver
 from foam_bridge.backends import Request, env_dir, make_backend
@@ -431,9 +431,8 @@ def test_a_driver_killed_mid_step_leaves_no_solver_after_5_s(tmp_path):
                               text=True, env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)})
     try:
         (worker,) = json.loads(driver.stdout.readline())
-        logs = lambda: list(work.rglob("log.simpleFoam"))  # noqa: E731
-        wait_until(lambda: any(iterations_in(log) >= 3 for log in logs()), 120, "the step to be under way")
-        assert max(iterations_in(log) for log in logs()) < 90 and len(_solvers_under(work)) == 1
+        wait_until(lambda: max(episode_progress(work), default=0) >= 3, 120, "the step to be under way")
+        assert max(episode_progress(work)) < 90 and len(_solvers_under(work)) == 1
         os.kill(driver.pid, signal.SIGKILL)
         assert seconds_until(lambda: not _solvers_under(work), 30.0) < STOP_LIMIT_S
         assert _gone_within(lambda: not _alive(worker), 5.0)

@@ -19,7 +19,14 @@ from pathlib import Path
 import pytest
 from foam_marks import needs_openfoam
 from rich.console import Console
-from slow_case import STOP_LIMIT_S, iterations_in, seconds_until, slow_pitz_daily, wait_until
+from slow_case import (
+    STOP_LIMIT_S,
+    all_into_a_step,
+    episode_progress,
+    seconds_until,
+    slow_pitz_daily,
+    wait_until,
+)
 from test_train_foam import TINY  # the cheap real runs: smallest mesh, 4 steps per env per update
 
 from foam_bridge.config import FoamEnvConfig
@@ -353,14 +360,11 @@ def test_a_stopped_train_foam_leaves_no_solver_within_5_s_mid_step(tmp_path, sig
     process, lines = _train_foam(["--case", str(case), "--pool", "2", "--steps-per-update", "8",
                                   "--max-iterations", "300", "--episodes", "50", "--out", str(run)], tmp)
 
-    def logs() -> list[int]:
-        return [iterations_in(log) for log in tmp.rglob("episode*/log.simpleFoam")]
-
     try:
-        wait_until(lambda: len(logs()) == 2 and min(logs()) >= 3 or process.poll() is not None, 300,
+        wait_until(lambda: all_into_a_step(tmp, 2) or process.poll() is not None, 300,
                    "both solvers to be 3 iterations into a step")
         assert process.poll() is None, lines
-        assert max(logs()) < 90  # the step has a minute to go
+        assert max(episode_progress(tmp)) < 90  # the step has a minute to go
         _stop(process, sig)
         took = seconds_until(lambda: not processes_under(tmp), 30.0)
         code = process.wait(timeout=30)
