@@ -17,8 +17,8 @@ algorithm tolerates (foam_bridge.user_case.action_box), starting from the case's
 An online bandit (UCB1 over a few factor triples, one per step of 25 iterations) is not offered yet: on
 SIMPLEC tutorials its arms at the box's top gained (T3A 212 iterations, own 269), but one step there grew
 a plain-SIMPLE case's residuals by 1.2 decades and the watchdog handed the run to the case's own factors
-for good; with safer arms it settled on the case's own factors (pitzDaily 277 against 282). Branch
-commit 52f1d9d holds it (with the safer arms).
+for good; with safer arms it settled on the case's own factors (pitzDaily 277 against 282). Commit
+52f1d9d holds it (with the safer arms).
 
 Their constants are module-level and chosen on the controller issue's training cases (the built-in step
 and OpenFOAM's pitzDaily, pitzDailyExptInlet, airFoil2D, backwardFacingStep2D and T3A) only.
