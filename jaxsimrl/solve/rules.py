@@ -40,9 +40,9 @@ __all__ = ["INTERVALS", "RULES", "ResidualRule", "RulePolicy"]
 #: Iterations between two decisions. 50 leaves 4-6 decisions on a 200-300-iteration case (pitzDaily, T3A)
 #: while a step still moves the residuals by more than their iteration-to-iteration noise.
 RULE_INTERVAL = 50
-#: ResidualRule: the share of the way to the box's top taken after a step in which every field fell ...
+#: ResidualRule: the share of the way to the box's top taken after a step of progress ...
 RAISE_SHARE = 0.5
-#: ... and to its bottom after one in which a field grew or stalled.
+#: ... and to its bottom after one in which the residuals grew.
 LOWER_SHARE = 0.25
 #: The run "progressed" over a step when its distance to the criterion (the worst field's decades above
 #: its threshold) fell by more than this ...
@@ -62,38 +62,21 @@ def _clip(action: Sequence[float], low: Sequence[float], high: Sequence[float]) 
 
 
 @dataclass
-class _Rule:
-    """A case's criterion ({field: threshold}), own factors and box; ``act`` is jaxsimrl.solve.drive's
-    Actor: ``first()`` before the first step, then ``next(residuals)`` after each."""
+class ResidualRule:
+    """Raise the factors while the run's distance to its criterion falls, lower them when it grows (see
+    the module docstring). ``criterion``: {field: threshold}; ``own``: the case's factors; ``low``,
+    ``high``: its box. ``act`` is jaxsimrl.solve.drive's Actor."""
 
     criterion: Mapping[str, float]
     own: Sequence[float]
     low: Sequence[float]
     high: Sequence[float]
-
-    def act(self, obs: Any, residuals: Mapping[str, float] | None) -> list[float]:
-        return self.first() if residuals is None else self.next(residuals)
-
-    def first(self) -> list[float]:
-        raise NotImplementedError
-
-    def next(self, residuals: Mapping[str, float]) -> list[float]:
-        raise NotImplementedError
-
-    def constants(self) -> dict[str, Any]:
-        """What the report records of the rule (its provenance)."""
-        raise NotImplementedError
-
-
-@dataclass
-class ResidualRule(_Rule):
-    """Raise the factors while every residual falls, lower them when one grows or stalls (see the module
-    docstring)."""
-
-    name: str = "residual-rule"
-    interval: int = RULE_INTERVAL
     _last: float | None = None
     _action: list[float] = field(default_factory=list)
+
+    def act(self, obs: Any, residuals: Mapping[str, float] | None) -> list[float]:
+        """The factors of the next step: :meth:`first` before the first step, then :meth:`next`."""
+        return self.first() if residuals is None else self.next(residuals)
 
     def first(self) -> list[float]:
         """The first step's factors: the case's own, in the box."""
@@ -117,20 +100,16 @@ class ResidualRule(_Rule):
                              self.low, self.high)
         return list(self._action)
 
-    def constants(self) -> dict[str, Any]:
-        return {"rule": self.name, "interval": self.interval, "raise_share": RAISE_SHARE,
-                "lower_share": LOWER_SHARE, "noise_decades": NOISE_DECADES, "growth_decades": GROWTH_DECADES}
-
 
 #: The rules solve offers (``--controller NAME``), and the step length each decides at.
-RULES: dict[str, type[_Rule]] = {"residual-rule": ResidualRule}
+RULES: dict[str, type[ResidualRule]] = {"residual-rule": ResidualRule}
 INTERVALS = {"residual-rule": RULE_INTERVAL}
 
 
 @dataclass(frozen=True)
 class RulePolicy:
     """A rule as solve's controller takes it (a ``Controller.policy``): the MDP it acts in (``env_params``:
-    its step length; the turbulence fields keep the case's own factors) and how to build it for a case."""
+    its step length and three actions) and how to build it for a case."""
 
     name: str
 
@@ -144,14 +123,20 @@ class RulePolicy:
         # (0.95, 0.9, 0.95) moves all three)
         return FoamEnvConfig(interval=INTERVALS[self.name], relax_k_omega=K_OMEGA_ACTION)
 
+    def provenance(self) -> dict[str, Any]:
+        """What solve.json records of the rule: its name, step length and constants."""
+        return {"rule": self.name, "interval": INTERVALS[self.name], "raise_share": RAISE_SHARE,
+                "lower_share": LOWER_SHARE, "noise_decades": NOISE_DECADES, "growth_decades": GROWTH_DECADES,
+                "about": "no training: jaxsimrl.solve.rules"}
+
     def watchdog(self, settings: WatchdogSettings) -> WatchdogSettings:
         """The watchdog's stall window kept in iterations: it counts steps, calibrated on steps of 100
-        iterations, and a rule's steps are shorter (3 steps of 25 would call pitzDaily's early plateau a
+        iterations, and a rule's steps are shorter (3 steps of 50 would call pitzDaily's early plateau a
         stall)."""
         steps = math.ceil(settings.stall_steps * 100 / INTERVALS[self.name])
         return dataclasses.replace(settings, stall_steps=steps)
 
     def for_case(self, criterion: Mapping[str, float], own: Sequence[float], low: Sequence[float],
-                 high: Sequence[float]) -> _Rule:
+                 high: Sequence[float]) -> ResidualRule:
         """The rule for a case's criterion, own factors and box."""
         return RULES[self.name](criterion, own, low, high)

@@ -215,8 +215,7 @@ def _controlled(cfg: Any, trained: Any, settings: Any, controller: Any, watchdog
 def rule_controller(name: str) -> Controller:
     """A no-training rule (jaxsimrl.solve.rules) as solve's controller; its provenance names it."""
     rule = RulePolicy(name)
-    return Controller(rule, {"rule": name, "interval": rule.env_params.interval,
-                             "about": "no training: jaxsimrl.solve.rules"})
+    return Controller(rule, rule.provenance())
 
 
 @dataclass(frozen=True)
