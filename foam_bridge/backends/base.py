@@ -162,6 +162,14 @@ class Backend(ABC):
         (``run`` interrupted, or submitted and not collected). ``close`` kills these at once."""
         return self._running | {worker for worker, queue in self._queues.items() if queue}
 
+    def _forget_busy(self) -> set[int]:
+        """For ``close``: the busy workers (:meth:`busy`), whose batches are then forgotten (their replies
+        will never be read)."""
+        busy = self.busy()
+        self._queues.clear()
+        self._running.clear()
+        return busy
+
     def pending(self) -> int:
         """Submitted batches not collected yet."""
         return sum(len(queue) for queue in self._queues.values())

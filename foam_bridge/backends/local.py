@@ -182,9 +182,7 @@ class LocalBackend(Backend):
         return self._procs[self.worker_of(env_id)].pid
 
     def close(self) -> None:
-        busy = self.busy()
-        self._queues.clear()
-        self._running.clear()
+        busy = self._forget_busy()
         for worker in busy:  # mid-step: its step may take minutes; kill it and its solvers now
             if self._conns[worker] is not None:
                 self._stop(worker)

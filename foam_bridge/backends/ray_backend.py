@@ -211,9 +211,7 @@ class RayBackend(Backend):
             return
         # an actor mid-step would answer close only after its step (minutes on a big mesh): killed now
         # below; the idle ones close their envs (a dead one answers at once) within the grace
-        busy = self.busy()
-        self._queues.clear()
-        self._running.clear()
+        busy = self._forget_busy()
         closing = [actor.close.remote() for worker, actor in live if worker not in busy]
         if closing:
             self._ray.wait(closing, num_returns=len(closing), timeout=CLOSE_GRACE_S)

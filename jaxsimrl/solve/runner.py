@@ -194,9 +194,9 @@ def _controlled(cfg: Any, trained: Any, settings: Any, controller: Any, watchdog
                 say: Callable[[str], None], checked: CheckedCase) -> ControlledRun:
     """The controlled run, or none (outcome "not run") when the controller does not apply to the case.
     ``controller``: a Controller, or its BackgroundLoad (waited for once the worker has built the case)."""
+    fallback = own_action(settings, cfg, len(cfg.action_low))
     rule = controller.policy if isinstance(controller, Controller) else None
     if isinstance(rule, RulePolicy):  # a rule reads residuals only: it applies to any case
-        fallback = own_action(settings, cfg, len(cfg.action_low))
         made = rule.for_case(dict(cfg.convergence), fallback, cfg.action_low, cfg.action_high)
         return drive(cfg, lambda speed: made, fallback, rule.watchdog(watchdog), say, checked)
     skip = not_applicable(trained, settings, checked.info.solved_fields)
@@ -208,7 +208,6 @@ def _controlled(cfg: Any, trained: Any, settings: Any, controller: Any, watchdog
         loaded = controller if isinstance(controller, Controller) else controller.result()
         return LearnedActor(loaded.policy, observation_factor(trained, speed))
 
-    fallback = own_action(settings, cfg, len(cfg.action_low))
     return drive(cfg, actor, fallback, watchdog, say, checked)
 
 
