@@ -3,7 +3,9 @@
     .venv/bin/python benchmarks/bench_solve.py pitzDaily airFoil2D backwardFacingStep2D --out /tmp/bench
 
 (``--policy RUN`` solves with a train-foam run's policy instead of the shipped controller; ``--controller
-residual-rule`` with the no-training rule, jaxsimrl.solve.rules.)
+residual-rule`` or ``bandit`` with a no-training rule, jaxsimrl.solve.rules; ``--compare-constant U P T``
+also runs those constant factors, a third solver beside the two: wall times are then shared three ways
+on a 2-core machine, iterations are not.)
 
 Prints one row per case: iterations and wall time of the controlled run and of the case's own settings,
 their ratios, solve's overhead beyond the solver's own work (and its fixed cost in seconds, with the
@@ -21,20 +23,25 @@ from pathlib import Path
 
 from jaxsimrl.solve import solve_case
 from jaxsimrl.solve.agreement import summary_line
+from jaxsimrl.solve.rules import RULES
 
 TUTORIALS = Path("/usr/share/doc/openfoam-examples/examples/incompressible/simpleFoam")
 
 
-def bench(name: str, root: Path, policy: Path | None = None, rule: str | None = None) -> dict:
-    """Solve one tutorial (a fresh copy) with --compare, by ``policy`` (a train-foam run; default: the
-    shipped controller) or the no-training ``rule``; its row."""
+def bench(name: str, root: Path, policy: Path | None = None, rule: str | None = None,
+          constant: list[float] | None = None) -> dict:
+    """Solve one tutorial (a fresh copy) with --compare (and --compare-constant ``constant``), by
+    ``policy`` (a train-foam run; default: the shipped controller) or the no-training ``rule``; its row."""
     case = root / name
     shutil.rmtree(case, ignore_errors=True)
     shutil.rmtree(root / f"{name}.solved", ignore_errors=True)
     shutil.copytree(TUTORIALS / name, case)
-    data = solve_case(case, root / f"{name}.solved", policy=policy, compare=True, rule=rule).data
+    data = solve_case(case, root / f"{name}.solved", policy=policy, compare=True, rule=rule,
+                      compare_constant=constant).data
     result, own = data["result"], data["compare"]["own"]
-    return {"case": name, "controller": rule or "learned", "converged": result["converged"],
+    fixed = data["compare"].get("constant")
+    return {"case": name, "algorithm": data["settings"]["algorithm"], "controller": rule or "learned",
+            "converged": result["converged"],
             "iterations": result["iterations"],
             "wall_s": round(result["wall_time_s"], 2), "own_converged": own["converged"],
             "own_iterations": own["iterations"], "own_wall_s": round(own["wall_time_s"], 2),
@@ -46,7 +53,9 @@ def bench(name: str, root: Path, policy: Path | None = None, rule: str | None = 
             "fixed_s": round(result["wall_time_s"] - result["solver_busy_s"], 2),
             "phases": {name: round(value, 2) for name, value in result.get("phases", {}).items()},
             "fallback": [event["kind"] for event in data["fallback"]], "fields_from": result["fields_from"],
-            "agreement_line": summary_line("own", own["agreement"]), "agreement": own["agreement"]}
+            "agreement_line": summary_line("own", own["agreement"]), "agreement": own["agreement"],
+            **({} if fixed is None else {"constant": constant, "constant_converged": fixed["converged"],
+                                         "constant_iterations": fixed["iterations"]})}
 
 
 def _percent(fraction: float | None) -> float | None:
@@ -59,11 +68,13 @@ def main() -> None:
     parser.add_argument("--out", type=Path, required=True)
     parser.add_argument("--policy", type=Path, default=None,
                         help="a train-foam run directory (default: the shipped controller)")
-    parser.add_argument("--controller", choices=("learned", "residual-rule"), default="learned")
+    parser.add_argument("--controller", choices=("learned", *RULES), default="learned")
+    parser.add_argument("--compare-constant", type=float, nargs=3, metavar="F", default=None)
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     for name in args.cases:
-        row = bench(name, args.out, args.policy, None if args.controller == "learned" else args.controller)
+        row = bench(name, args.out, args.policy, None if args.controller == "learned" else args.controller,
+                    args.compare_constant)
         print(json.dumps(row), flush=True)
         with open(args.out / "rows.jsonl", "a") as rows:
             rows.write(json.dumps(row) + "\n")

@@ -17,7 +17,9 @@ through BatchedFoamEnv because:
 A controller is one of:
 
 - an object with ``begin(uid)``, ``act(uids, obs, steps) -> actions`` (one row per episode) and
-  ``end(uid)`` (:class:`Controller`); it acts once per step for all running episodes that share it;
+  ``end(uid)`` (:class:`Controller`); it acts once per step for all running episodes that share it; one
+  that also has ``observe(uid, step)`` is shown each :class:`StepRecord` of its episodes (a controller
+  that acts on the residuals, not the observation);
 - a callable ``obs -> action`` (one episode's observation, called per episode);
 - constant factors (a sequence of floats), the same action at every step.
 
@@ -223,6 +225,8 @@ class _Scheduler:
             obs, reward, terminated, truncated, info = reply.value
             running.trace.append(StepRecord(running.obs, action, float(reward), int(info["iterations"]),
                                             dict(info.get("residuals", {})), info["outcome"]))
+            if hasattr(running.controller, "observe"):
+                running.controller.observe(running.job.uid, running.trace[-1])
             running.obs = np.asarray(obs, np.float32)
             running.iterations = int(info["iterations"])
             if terminated or truncated:

@@ -572,3 +572,44 @@ def test_the_reference_key_follows_the_case_files_and_not_where_they_run(tmp_pat
     with open(case / "system" / "fvSchemes", "a") as handle:
         handle.write("// edited\n")
     assert reference_key(cfg, 50.0, (0.95, 0.875)) != key
+
+
+@needs_openfoam
+def test_the_no_training_rules_run_in_the_protocol_at_their_own_step_length(saved_run, tmp_path):
+    """``--controllers residual_rule bandit``: solve's rules, from the tutorial's defaults in the training
+    box, each stepping at its own interval; the residual rule's run is the episode FoamCaseEnv gives when
+    the rule acts on its residuals directly."""
+    from foam_bridge.env import FoamCaseEnv
+    from jaxsimrl.evaluation.foam_eval_spec import episode_uid
+    from jaxsimrl.solve.rules import INTERVALS, ResidualRule
+
+    out = tmp_path / "rules"
+    code = main(["eval-foam", str(saved_run), "--velocities", str(VELOCITY), "--step-height", "0.0127",
+                 "--mesh-scale", "0.4", "--pool", "2", "--controllers", "residual_rule", "bandit",
+                 "tutorial_defaults", "--out", str(out)])
+    assert code == 0
+    report = json.loads((out / "eval.json").read_text())
+    assert list(report["results"]) == ["tutorial_defaults", "residual_rule", "bandit"]
+    runs = {name: report["results"][name]["h"]["50"]["runs"] for name in report["results"]}
+    assert all(len(cell) == 1 for cell in runs.values())
+    for name, rule in (("residual_rule", "residual-rule"), ("bandit", "bandit")):
+        (run,) = runs[name]
+        assert run["steps"] == len(run["actions"]) == -(-run["iterations"] // INTERVALS[rule])
+        assert all(0.2 - 1e-6 <= a <= 0.95 + 1e-6 for action in run["actions"] for a in action)
+    assert runs["bandit"][0]["actions"][0] == pytest.approx([0.9, 0.8])  # arm 0: the case's own
+    assert runs["residual_rule"][0]["actions"][0] == pytest.approx([0.95, 0.95])  # SIMPLEC: the box's top
+
+    cfg = dataclasses.replace(TRAIN_FOAM, convergence=dict(TEST_CONVERGENCE),
+                              interval=INTERVALS["residual-rule"])
+    rule = ResidualRule(dict(TEST_CONVERGENCE), (0.9, 0.8), cfg.action_low, cfg.action_high, simplec=True)
+    actions, residuals = [], None
+    with FoamCaseEnv(cfg, work_dir=tmp_path / "direct") as env:
+        env.reset(seed=episode_uid("residual_rule", "h", VELOCITY, 0), options={"inlet_velocity": VELOCITY})
+        done = False
+        while not done:
+            actions.append(rule.act(None, residuals))
+            _, _, terminated, truncated, info = env.step(np.asarray(actions[-1]))
+            residuals, done = info["residuals"], terminated or truncated
+    (run,) = runs["residual_rule"]
+    assert (run["iterations"], run["outcome"]) == (info["iterations"], info["outcome"])
+    np.testing.assert_allclose(run["actions"], actions, atol=1e-6)

@@ -13,7 +13,8 @@ from foam_marks import needs_openfoam
 from test_solve import _coarse_step, _marked_processes
 
 from jaxsimrl.solve import solve_case
-from jaxsimrl.solve.rules import ResidualRule, RulePolicy
+from jaxsimrl.solve.rules import GROWTH_DECADES, RAISE_SHARE, Bandit, ResidualRule, RulePolicy
+from jaxsimrl.solve.settings import CaseSettings, check_factor
 from jaxsimrl.solve.watchdog import WatchdogSettings
 
 CRITERION = {"U": 1e-3, "p": 1e-2}
@@ -25,35 +26,73 @@ def _residuals(decades: float) -> dict[str, float]:
     return {"U": 1e-3 * 10**decades, "p": 1e-2 * 10 ** (decades - 0.5)}
 
 
-def test_the_residual_rule_holds_first_then_raises_on_progress_and_lowers_on_growth():
-    rule = ResidualRule(CRITERION, OWN, LOW, HIGH)
-    assert rule.act(None, None) == list(OWN)
-    assert rule.act(None, _residuals(2.0)) == list(OWN)  # the first boundary: the start-up transient
-    raised = rule.act(None, _residuals(1.5))  # progress: half-way up to the top
-    assert raised == pytest.approx([o + 0.5 * (h - o) for o, h in zip(OWN, HIGH, strict=True)])
-    assert rule.act(None, _residuals(1.6)) == raised  # a small rise: a developing flow's transient, held
-    lowered = rule.act(None, _residuals(2.5))  # a real rise: a quarter of the way down
-    assert lowered == pytest.approx([r - 0.25 * (r - lo) for r, lo in zip(raised, LOW, strict=True)])
+def _raised(action: list[float], share: float = RAISE_SHARE) -> list[float]:
+    return [a + share * (h - a) for a, h in zip(action, HIGH, strict=True)]
 
 
-def test_the_residual_rule_never_leaves_its_box():
-    rule, rng = ResidualRule(CRITERION, (1.0, 0.9, 1.0), LOW, HIGH), random.Random(0)
+def test_the_residual_rule_raises_below_its_best_and_goes_back_to_own_for_good_on_growth():
+    rule = ResidualRule(CRITERION, OWN, LOW, HIGH, simplec=False)
+    assert rule.act(None, None) == list(OWN)  # plain SIMPLE: the case's own factors first
+    assert rule.act(None, _residuals(3.0)) == list(OWN)  # the first boundary: the start-up transient
+    first = rule.act(None, _residuals(2.5))  # below the best: half-way up to the top
+    assert first == pytest.approx(_raised(list(OWN)))
+    assert rule.act(None, _residuals(2.7)) == first  # 0.2 decade above the best: a transient, held
+    second = rule.act(None, _residuals(2.4))
+    assert second == pytest.approx(_raised(first))
+    assert rule.act(None, _residuals(2.8)) == list(OWN)  # 0.4 decade above the best: back to own ...
+    assert rule.act(None, _residuals(1.5)) == list(OWN)  # ... for good
+
+
+def test_the_residual_rule_starts_a_simplec_case_at_its_box_top_and_freezes_near_its_criterion():
+    rule = ResidualRule(CRITERION, (0.9, 1.0, 0.9), (0.2,) * 3, (0.95,) * 3, simplec=True)
+    assert rule.act(None, None) == [0.95] * 3
+    assert rule.act(None, _residuals(2.0)) == [0.95] * 3
+    assert rule.act(None, _residuals(0.4)) == [0.95] * 3  # within a decade: no change, whatever comes
+    assert rule.act(None, _residuals(0.9)) == [0.95] * 3
+    assert rule.act(None, _residuals(1.1)) == [0.95] * 3  # 0.2 decade above the best (0.9): held
+    assert rule.act(None, _residuals(1.1 + GROWTH_DECADES)) == [0.9, 0.95, 0.9]  # own, in the box
+
+
+def test_the_bandit_tries_its_arms_upward_drops_an_arm_that_grew_and_plays_the_best():
+    bandit = Bandit(CRITERION, OWN, LOW, HIGH)
+    assert bandit.act(None, None) == list(OWN)
+    assert bandit.act(None, _residuals(3.0)) == list(OWN)  # the start-up transient: no reward
+    assert bandit.act(None, _residuals(2.9)) == pytest.approx(bandit.arm(1))  # own paid 0.1: try arm 1
+    assert bandit.act(None, _residuals(2.5)) == pytest.approx(bandit.arm(2))  # arm 1 paid 0.4: try arm 2
+    assert bandit.act(None, _residuals(3.0)) == pytest.approx(bandit.arm(1))  # arm 2 grew 0.5: gone
+    for _ in range(20):  # arm 1 keeps paying more than own: it is played (with UCB's rare look at own)
+        bandit.act(None, _residuals(bandit._last - (0.3 if bandit._arm == 1 else 0.1)))
+    assert bandit._pulls[1] > 3 * bandit._pulls[0] and bandit._pulls[2] == 1
+
+
+@pytest.mark.parametrize("rule_type", [ResidualRule, Bandit])
+@pytest.mark.parametrize("simplec", [False, True])
+def test_a_rule_never_leaves_its_box(rule_type: type, simplec: bool) -> None:
+    rule, rng = rule_type(CRITERION, (1.0, 0.9, 1.0), LOW, HIGH, simplec), random.Random(0)
     actions = [rule.act(None, None)]  # own factors above the box: clipped
     actions += [rule.act(None, _residuals(rng.uniform(-1, 4))) for _ in range(200)]
     assert all(lo <= a <= hi for action in actions for a, lo, hi in zip(action, LOW, HIGH, strict=True))
     assert actions[0] == list(HIGH)
 
 
+@pytest.mark.parametrize(("own", "check"), [(0.7, 0.7), (0.95, 0.95), (None, 0.9), (1.0, 0.9)])
+def test_solve_confirms_at_the_case_own_alpha_u(own: float | None, check: float) -> None:
+    settings = CaseSettings(factors=(own, 0.3, 0.7), flat=True, budget=None)
+    assert check_factor(settings) == check
+
+
 def test_a_rule_is_named_and_keeps_the_watchdog_stall_window_in_iterations():
     with pytest.raises(ValueError, match="no rule 'nope'"):
         RulePolicy("nope")
-    rule = RulePolicy("residual-rule")
+    rule, bandit = RulePolicy("residual-rule"), RulePolicy("bandit")
     assert rule.env_params.interval == 50 and rule.env_params.relax_k_omega == "action"
     assert rule.watchdog(WatchdogSettings()).stall_steps == 6  # 3 steps of 100 = 6 of 50
+    assert bandit.env_params.interval == 25 and bandit.watchdog(WatchdogSettings()).stall_steps == 12
+    assert bandit.provenance()["arms"] == 3 and "raise_share" in rule.provenance()
 
 
 @needs_openfoam
-@pytest.mark.parametrize("name", ["residual-rule"])
+@pytest.mark.parametrize("name", ["residual-rule", "bandit"])
 @pytest.mark.parametrize("variant", ["SIMPLEC", "SIMPLE"])
 def test_a_rule_converges_a_coarse_case_inside_its_box(tmp_path: Path, name: str, variant: str) -> None:
     case = _coarse_step(tmp_path / "step")
@@ -73,18 +112,22 @@ def test_a_rule_converges_a_coarse_case_inside_its_box(tmp_path: Path, name: str
     assert len(low) == 3 and all(len(step["action"]) == 3 for step in data["steps"])
     assert all(lo - 1e-9 <= a <= hi + 1e-9 for step in data["steps"]
                for a, lo, hi in zip(step["action"], low, high, strict=True))
+    # converged as the case's own criterion reads it at the case's own alpha_u (0.7 plain, 0.9 SIMPLEC)
+    assert data["settings"]["confirm_alpha_u"] == (0.7 if variant == "SIMPLE" else 0.9)
+    assert data["settings"]["algorithm"] == variant
     if variant == "SIMPLE":
         assert (low[1], high[1]) == pytest.approx((0.15, 0.375))  # own p 0.3: [own / 2, 1.25 own]
 
 
 @needs_openfoam
-def test_a_rule_that_crashes_the_solver_is_rescued_by_the_case_own_run(tmp_path: Path) -> None:
+@pytest.mark.parametrize("name", ["residual-rule", "bandit"])
+def test_a_rule_that_crashes_the_solver_is_rescued_by_the_case_own_run(tmp_path: Path, name: str) -> None:
     """Plain SIMPLE forced to a box at 0.95 and above (experiments' action_box): the rule's first factors
     crash simpleFoam (NOTES: from alpha_u 0.7 / alpha_p 0.9); the case's own run replaces the result."""
     case = _coarse_step(tmp_path / "step")
     solution = case / "system" / "fvSolution"
     solution.write_text(solution.read_text().replace("consistent      yes;", "consistent      no;"))
-    report = solve_case(case, tmp_path / "out", rule="residual-rule", step_timeout_s=120,
+    report = solve_case(case, tmp_path / "out", rule=name, step_timeout_s=120,
                         action_box=((0.98, 0.98, 0.98), (1.0, 1.0, 1.0)))
     data = json.loads((tmp_path / "out" / "solve.json").read_text())
     assert [event["kind"] for event in data["fallback"]][-1] == "rerun"

@@ -138,7 +138,7 @@ class EvalProgress(RunProgress):
 #: Short controller names for the terminal table.
 SHORT_NAMES = {"learned_deterministic": "learned mean", "learned_stochastic": "learned sampled",
                "best_constant": "best constant", "tutorial_defaults": "defaults", "random": "random",
-               "case_oracle": "case oracle"}
+               "residual_rule": "residual rule", "bandit": "bandit", "case_oracle": "case oracle"}
 
 
 def results_table(report: dict[str, Any]) -> Any:

@@ -35,10 +35,11 @@ def register(subparsers: Any) -> None:
                         "(default: ./NAME.solved, NAME the case directory's name)")
     parser.add_argument("--policy", metavar="RUN_DIR", help="a train-foam run directory (default: the "
                         "shipped controller)")
-    parser.add_argument("--controller", choices=("learned", "residual-rule"), default="learned",
-                        help="learned: the shipped controller or --policy (default); residual-rule "
-                        "(experimental): no training, on plain SIMPLE and SIMPLEC cases alike: raise the "
-                        "factors while the residuals fall, lower them when they grow")
+    parser.add_argument("--controller", choices=("learned", "residual-rule", "bandit"), default="learned",
+                        help="learned: the shipped controller or --policy (default). No training, on plain "
+                        "SIMPLE and SIMPLEC cases alike: residual-rule raises the factors while the "
+                        "residuals fall and goes back when they grow; bandit tries factors from the "
+                        "case's own to its box's top and plays the one that gains most")
     parser.add_argument("--compare", action="store_true", help="also run the case with its own settings, "
                         "in parallel, and report the savings")
     parser.add_argument("--compare-constant", type=relaxation_factor, nargs="+", metavar="F",
@@ -53,9 +54,10 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--max-iterations", type=positive_int, metavar="N",
                         help="iteration budget (default: the case's controlDict endTime minus the start "
                         "time, / deltaT)")
-    parser.add_argument("--confirm-alpha-u", type=check_factor, default=0.9, metavar="A",
+    parser.add_argument("--confirm-alpha-u", type=check_factor, default=None, metavar="A",
                         dest="confirm_alpha_u", help="the convergence check relaxation cannot move: one "
-                        "SIMPLE iteration at alpha_u = A from the converged fields (default 0.9)")
+                        "SIMPLE iteration at alpha_u = A from the converged fields (default: the case's own "
+                        "alpha_u, 0.9 if it does not relax U)")
     parser.add_argument("--step-timeout", type=positive_float, default=300.0, metavar="S",
                         help="watchdog on the solver: seconds one step of 100 iterations may take "
                         "(default 300)")
@@ -118,7 +120,7 @@ def run_solve(args: argparse.Namespace) -> int:
     try:
         report = solve_case(args.case, out, policy=args.policy, compare=args.compare,
                             compare_constant=args.compare_constant, max_iterations=args.max_iterations,
-                            confirm_alpha_u=args.confirm_alpha_u, step_timeout_s=args.step_timeout,
+                            confirm_alpha_u=args.confirm_alpha_u or "own", step_timeout_s=args.step_timeout,
                             inlet_patch=args.inlet_patch, say=say, residual=args.residual,
                             from_time=args.from_time,
                             rule=None if args.controller == "learned" else args.controller)

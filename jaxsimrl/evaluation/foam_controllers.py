@@ -8,6 +8,8 @@ never on the batch it shares: so the same command gives the same numbers whateve
 - :class:`CaseGridController`: a grid of constant factors, one cell per episode (the per-case oracle:
   every cell of its grid on the test case; its best is chosen afterwards, see foam_oracle).
 - :class:`RandomController`: factors uniform in the action box at every step (the paper's baseline).
+- :class:`RuleController`: a no-training rule of ``jaxsimrl solve`` (jaxsimrl.solve.rules), one per
+  episode, acting on the residuals of its episode's last step.
 - :class:`LearnedController`: the trained policy, deterministic (its mean action) or stochastic: a thin
   adapter from this protocol (begin/act/end per uid) to a :class:`jaxsimrl.policy.BatchActor`.
 
@@ -22,7 +24,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from foam_bridge.episodes import ConstantFactors, StatelessController
+from foam_bridge.episodes import ConstantFactors, StatelessController, StepRecord
+from jaxsimrl.solve.rules import RULES
 
 if TYPE_CHECKING:  # only a type: the controllers themselves need no JAX
     from jaxsimrl.policy import BatchActor
@@ -75,6 +78,34 @@ class RandomController:
 
     def end(self, uid: int) -> None:
         self._streams.pop(uid, None)
+
+
+class RuleController:
+    """A rule of jaxsimrl.solve.rules (``rule``: its name) in every episode, each its own instance: built
+    for the case's ``criterion``, ``own`` factors (where it starts, and goes back to), box (``low``,
+    ``high``) and algorithm (``simplec``), and shown the residuals of its episode's steps (``observe``)."""
+
+    repeats = False
+
+    def __init__(self, name: str, rule: str, criterion: dict[str, float], own: Sequence[float],
+                 box: tuple[Sequence[float], Sequence[float]], simplec: bool) -> None:
+        self.name, self.rule = name, rule
+        self.case = (dict(criterion), tuple(own), tuple(box[0]), tuple(box[1]), simplec)
+        self._rules: dict[int, Any] = {}
+        self._residuals: dict[int, dict[str, float] | None] = {}
+
+    def begin(self, uid: int) -> None:
+        self._rules[uid], self._residuals[uid] = RULES[self.rule](*self.case), None
+
+    def observe(self, uid: int, step: StepRecord) -> None:
+        self._residuals[uid] = dict(step.residuals) or None
+
+    def act(self, uids: Sequence[int], obs: np.ndarray, steps: Sequence[int]) -> np.ndarray:
+        return np.array([self._rules[uid].act(None, self._residuals[uid]) for uid in uids], np.float64)
+
+    def end(self, uid: int) -> None:
+        self._rules.pop(uid, None)
+        self._residuals.pop(uid, None)
 
 
 class LearnedController:

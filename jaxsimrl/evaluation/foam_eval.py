@@ -7,11 +7,13 @@ the episodes and runs them on foam_bridge's episode pool (foam_runner).
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+from foam_bridge.config import TEST_CONVERGENCE
 from jaxsimrl.evaluation import foam_oracle
 from jaxsimrl.evaluation.foam_baseline import (
     Baseline,
@@ -27,10 +29,12 @@ from jaxsimrl.evaluation.foam_controllers import (
     ConstantController,
     LearnedController,
     RandomController,
+    RuleController,
 )
 from jaxsimrl.evaluation.foam_eval_spec import (
     CONTROLLERS,
     DEFAULT_CONTROLLERS,
+    RULE_CONTROLLERS,
     TUTORIAL_DEFAULTS,
     EvalSpec,
     episode_uid,
@@ -40,6 +44,7 @@ from jaxsimrl.evaluation.foam_eval_spec import (
 from jaxsimrl.evaluation.foam_references import References
 from jaxsimrl.evaluation.foam_report import build_report, run_row, write_outputs
 from jaxsimrl.evaluation.foam_runner import EpisodeResult, Job, run_episodes
+from jaxsimrl.solve.rules import INTERVALS
 
 
 def plan(names: Sequence[str], velocities: Sequence[float], repeats: dict[str, bool],
@@ -79,6 +84,10 @@ def make_controllers(run: Any, baseline: Baseline | None, pool: int, seed: int,
         foam_oracle.ORACLE: lambda: CaseGridController(foam_oracle.ORACLE,
                                                        [as_action(run.foam, c) for c in oracle]),
     }
+    for name, rule in RULE_CONTROLLERS.items():
+        makers[name] = lambda name=name, rule=rule: RuleController(
+            name, rule, dict(TEST_CONVERGENCE), as_action(run.foam, TUTORIAL_DEFAULTS),
+            (run.foam.action_low, run.foam.action_high), run.foam.variant == "SIMPLEC")
     return {name: makers[name]() for name in names}
 
 
@@ -144,10 +153,21 @@ def _run_plan(spec: EvalSpec, run: Any, shapes: dict[str, float | None], jobs: l
         cfg = eval_config(run.foam, spec, height, constants)
         if references.wanted:
             references.run(cfg, name, spec.velocities, spec.pool, progress)
-        mine = [j for j in jobs if j.geometry == name]
-        done_here = run_episodes(cfg, mine, controllers, spec.pool, progress, fields=references.wanted)
-        results += [references.measure(r) for r in done_here]
+        for interval, mine in _by_interval([j for j in jobs if j.geometry == name], cfg.interval).items():
+            stepped, wanted = dataclasses.replace(cfg, interval=interval), references.wanted
+            done_here = run_episodes(stepped, mine, controllers, spec.pool, progress, fields=wanted)
+            results += [references.measure(r) for r in done_here]
     return results, references
+
+
+def _by_interval(jobs: list[Job], interval: int) -> dict[int, list[Job]]:
+    """The jobs by the step length they run at: the rules' own (jaxsimrl.solve.rules.INTERVALS), the
+    protocol's ``interval`` for the others (a pool steps all its episodes alike)."""
+    groups: dict[int, list[Job]] = {}
+    for job in jobs:
+        rule = RULE_CONTROLLERS.get(job.controller)
+        groups.setdefault(interval if rule is None else INTERVALS[rule], []).append(job)
+    return groups
 
 
 def _make_output_dir(out: Path) -> Path:

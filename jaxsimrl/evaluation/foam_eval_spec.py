@@ -16,6 +16,9 @@ Controllers, all in the same run (see foam_controllers):
 - ``tutorial_defaults``: the tutorial's (U 0.9, p 0.8, and on a run with the k/omega action k/omega
   0.8, backwardFacingStep2D's ".*" 0.8; a 2-action run keeps its own k/omega factor); one run;
 - ``random``: factors uniform in the action box at every step, ``samples`` runs (the paper's baseline);
+- ``residual_rule`` and ``bandit`` (only when asked for): ``jaxsimrl solve``'s no-training rules
+  (jaxsimrl.solve.rules), starting from the tutorial's defaults, in the training box, each at its own
+  step length (the protocol's other controllers act every ``interval`` iterations); one run per cell;
 - ``case_oracle`` (only when asked for: it costs a grid per case): the best constant of a grid on each
   test case itself, and what that grid cost (foam_oracle).
 
@@ -56,9 +59,11 @@ DEFAULT_GRID = (0.8, 0.9, 0.95)
 TUTORIAL_DEFAULTS = (0.9, 0.8)
 #: Controller keys, in the order of tables and figures.
 CONTROLLERS = ("learned_deterministic", "learned_stochastic", "best_constant", "tutorial_defaults", "random",
-               foam_oracle.ORACLE)
-#: Those run without --controllers: the oracle's grid per case is paid for only when asked.
-DEFAULT_CONTROLLERS = CONTROLLERS[:-1]
+               "residual_rule", "bandit", foam_oracle.ORACLE)
+#: Those run without --controllers: the oracle's grid per case and the rules are run only when asked.
+DEFAULT_CONTROLLERS = CONTROLLERS[:5]
+#: The no-training rules of the protocol, by the name jaxsimrl.solve.rules gives them.
+RULE_CONTROLLERS = {"residual_rule": "residual-rule", "bandit": "bandit"}
 #: FoamEnvConfig fields left out of the report's "case": they vary per cell, or the report gives them
 #: apart ("action_box": the training box; the env's own box is widened to hold the constants).
 CASE_OMITTED = ("work_dir", "keep_cases", "step_height", "inlet_velocity", "action_low", "action_high")

@@ -29,10 +29,10 @@ from jaxsimrl.runs.atomic import atomic_write_bytes
 
 LABELS = {"learned_deterministic": "learned\n(mean)", "learned_stochastic": "learned\n(sampled)",
           "best_constant": "best\nconstant", "tutorial_defaults": "tutorial\ndefaults", "random": "random",
-          "case_oracle": "case\noracle"}
+          "residual_rule": "residual\nrule", "bandit": "bandit", "case_oracle": "case\noracle"}
 COLOURS = {"learned_deterministic": "tab:blue", "learned_stochastic": "tab:cyan",
            "best_constant": "tab:green", "tutorial_defaults": "tab:olive", "random": "tab:red",
-           "case_oracle": "indigo"}
+           "residual_rule": "tab:orange", "bandit": "tab:brown", "case_oracle": "indigo"}
 #: (controller, line width, opacity) of the factor trajectories: the samples thin, the mean action bold.
 #: The action's factors, one row of factors.png each (alpha_t only for a run with the k/omega action).
 FACTOR_KEYS = ("alpha_u", "alpha_p", "alpha_t")

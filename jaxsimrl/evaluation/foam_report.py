@@ -107,6 +107,9 @@ def build_report(spec: EvalSpec, run: Any, baseline: Baseline | None, shapes: di
         f"constant {factors_text(baseline.factors)}, one run per cell",
         "tutorial_defaults": f"constant {TUTORIAL_DEFAULTS} (U, p), k/omega as the case, one run per cell",
         "random": f"uniform in the action box at every step, {spec.samples} runs per cell",
+        "residual_rule": "jaxsimrl solve's residual rule (no training) from the tutorial's defaults, one run "
+        "per cell",
+        "bandit": "jaxsimrl solve's bandit (no training) from the tutorial's defaults, one run per cell",
         foam_oracle.ORACLE: "per cell, the best constant of a grid on that case (its run; the grid's cost "
         "in 'oracle', its other runs in eval.csv as case_oracle_grid)",
     }

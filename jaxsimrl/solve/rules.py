@@ -1,24 +1,35 @@
-"""Relaxation without training: a residual rule, a baseline a learned controller must beat, and the first
-controller here for plain-SIMPLE cases.
+"""Relaxation without training: a residual rule and an online bandit, the baselines a learned controller
+must beat, and the first controllers here for plain-SIMPLE cases.
 
 Both act at the env's step boundaries on what every case has: the initial residuals of its criterion's
-fields (``log10(residual / threshold)`` per field, the watchdog's distance; jaxsimrl.solve.watchdog), never
-on a learned observation, so they apply to plain SIMPLE and SIMPLEC alike, within the box the case's
-algorithm tolerates (foam_bridge.user_case.action_box), starting from the case's own factors.
+fields (the run's *distance* to its criterion, the worst field's ``log10(residual / threshold)``, as the
+watchdog measures it; jaxsimrl.solve.watchdog), never on a learned observation, so they apply to plain
+SIMPLE and SIMPLEC alike, within the box the case's algorithm tolerates (foam_bridge.user_case.action_box:
+SIMPLEC [0.2, 0.95], plain SIMPLE [own / 2, 1.25 own]).
+
+What shaped them, measured on the training tutorials (experiments in benchmarks/RESULTS_solve.md):
+
+- *Every change of alpha_u costs a re-convergence*: the face fluxes simpleFoam iterates on depend on the
+  momentum matrix's relaxed diagonal, so a new factor is a slightly new discrete problem and the residuals
+  jump (airFoil2D, 0.831 -> 0.853 at 0.67 decade from its criterion: p 4.7e-5 -> 1.5e-3 in 5 iterations).
+  So both change factors early or not at all: within FREEZE_DECADES of the criterion they hold.
+- *A step's residuals judge its factors late and noisily*: a developing flow's residuals rise for a while
+  under any factors (pitzDaily's U, iterations 50-150, at its own factors), and a change's own jump reads
+  as growth for ~25 iterations. Steps of 25 made the rule revert good raises (airFoil2D 368 iterations
+  against 293 with steps of 50); judging each field alone lowered pitzDaily's factors on U's early rise
+  (450 iterations against its own 282).
+- *SIMPLEC is made for factors near 1* (Van Doormaal & Raithby 1984: its consistent pressure correction
+  needs no pressure relaxation), and its box's top corner converged both SIMPLEC tutorials far faster
+  than their own factors; plain SIMPLE's top corner (1.25 own, alpha_u + alpha_p > 1) sent
+  pitzDailyExptInlet's p from 0.13 to 0.86 in 25 iterations. So the residual rule starts a SIMPLEC case
+  at its box's top and a plain-SIMPLE case at its own factors.
 
 - :class:`ResidualRule` (after Min & Tao 2007, who adjust the factors every n iterations from the
-  residuals): when the run's distance to its criterion (the worst field's decades above its threshold)
-  fell over the last step, move each factor a share of the way up to the box's top; when it grew by more
-  than a developing flow's transient, a share of the way down to the box's bottom; otherwise hold. A
-  first version judged each field alone (raise when every field fell, lower when any grew or stalled):
-  on pitzDaily it lowered the factors on the early rise of U's residual and oscillated, 450 iterations
-  against the case's own 282.
-
-An online bandit (UCB1 over a few factor triples, one per step of 25 iterations) is not offered yet: on
-SIMPLEC tutorials its arms at the box's top gained (T3A 212 iterations, own 269), but one step there grew
-a plain-SIMPLE case's residuals by 1.2 decades and the watchdog handed the run to the case's own factors
-for good; with safer arms it settled on the case's own factors (pitzDaily 277 against 282). Commit
-52f1d9d holds it (with the safer arms).
+  residuals): raise while the run improves on its best distance, go back to the case's own factors for
+  good once it is GROWTH_DECADES above it.
+- :class:`Bandit` (UCB1, after Khodak et al. 2024, who tune a solver's settings online inside one run):
+  arms from the case's own factors to its box's top, one a step, rewarded by the decades gained per 100
+  iterations.
 
 Their constants are module-level and chosen on the controller issue's training cases (the built-in step
 and OpenFOAM's pitzDaily, pitzDailyExptInlet, airFoil2D, backwardFacingStep2D and T3A) only.
@@ -35,21 +46,31 @@ from typing import Any
 from foam_bridge.config import K_OMEGA_ACTION, FoamEnvConfig
 from jaxsimrl.solve.watchdog import Watchdog, WatchdogSettings
 
-__all__ = ["INTERVALS", "RULES", "ResidualRule", "RulePolicy"]
+__all__ = ["INTERVALS", "RULES", "Bandit", "ResidualRule", "RulePolicy"]
 
-#: Iterations between two decisions. 50 leaves 4-6 decisions on a 200-300-iteration case (pitzDaily, T3A)
-#: while a step still moves the residuals by more than their iteration-to-iteration noise.
+#: Iterations between two decisions of the residual rule. 50 leaves 4-6 decisions on a 200-300-iteration
+#: case (pitzDaily, T3A) while a step still moves the residuals by more than their iteration-to-iteration
+#: noise.
 RULE_INTERVAL = 50
-#: ResidualRule: the share of the way to the box's top taken after a step of progress ...
+#: The bandit's step: shorter, so that it can try its arms on a 200-300-iteration case and still have
+#: steps left to play the best one (3 arms tried by iteration 100 of pitzDaily's 282).
+BANDIT_INTERVAL = 25
+#: ResidualRule: the share of the way to the box's top taken after a step of progress.
 RAISE_SHARE = 0.5
-#: ... and to its bottom after one in which the residuals grew.
-LOWER_SHARE = 0.25
 #: The run "progressed" over a step when its distance to the criterion (the worst field's decades above
 #: its threshold) fell by more than this ...
 NOISE_DECADES = 0.02
 #: ... and "grew" when it rose by more than this. Not 0: a developing flow's residuals rise for a while
 #: under any factors (pitzDaily's U, iterations 50-100, at its own factors).
 GROWTH_DECADES = 0.3
+#: Within this many decades of its criterion a run's factors are frozen: every change of alpha_u changes
+#: the discrete problem the solver iterates on (simpleFoam's face fluxes depend on the momentum matrix's
+#: relaxed diagonal), so the residuals jump and the run re-converges. Measured on airFoil2D: raising
+#: alpha_u 0.831 -> 0.853 at iteration 250 (0.67 decade from the criterion) sent p from 4.7e-5 to 1.5e-3
+#: in 5 iterations; the same raise at 2 decades cost nothing that the next steps did not gain back.
+FREEZE_DECADES = 1.0
+#: The bandit's arms: this many points from the case's own factors (arm 0) to its box's top corner.
+ARMS = 3
 
 
 def _distance(residuals: Mapping[str, float], criterion: Mapping[str, float]) -> float:
@@ -61,49 +82,114 @@ def _clip(action: Sequence[float], low: Sequence[float], high: Sequence[float]) 
     return [min(max(a, lo), hi) for a, lo, hi in zip(action, low, high, strict=True)]
 
 
+def _toward(start: Sequence[float], end: Sequence[float], share: float) -> list[float]:
+    return [a + share * (b - a) for a, b in zip(start, end, strict=True)]
+
+
 @dataclass
-class ResidualRule:
-    """Raise the factors while the run's distance to its criterion falls, lower them when it grows (see
-    the module docstring). ``criterion``: {field: threshold}; ``own``: the case's factors; ``low``,
-    ``high``: its box. ``act`` is jaxsimrl.solve.drive's Actor."""
+class _Rule:
+    """What both rules share: the case's criterion, own factors and box (``criterion``: {field:
+    threshold}; ``own``; ``low``, ``high``), the run's distance to its criterion at the last step boundary
+    and the factors in force. ``act`` is jaxsimrl.solve.drive's Actor; subclasses decide in ``decide``."""
 
     criterion: Mapping[str, float]
     own: Sequence[float]
     low: Sequence[float]
     high: Sequence[float]
+    simplec: bool = False
     _last: float | None = None
     _action: list[float] = field(default_factory=list)
 
-    def act(self, obs: Any, residuals: Mapping[str, float] | None) -> list[float]:
-        """The factors of the next step: :meth:`first` before the first step, then :meth:`next`."""
-        return self.first() if residuals is None else self.next(residuals)
-
-    def first(self) -> list[float]:
+    def start(self) -> list[float]:
         """The first step's factors: the case's own, in the box."""
-        self._action = _clip(self.own, self.low, self.high)
-        return list(self._action)
+        return _clip(self.own, self.low, self.high)
 
-    def next(self, residuals: Mapping[str, float]) -> list[float]:
-        """The next step's factors, from the residuals at the end of the step just run."""
+    def act(self, obs: Any, residuals: Mapping[str, float] | None) -> list[float]:
+        """The factors of the next step: :meth:`start`'s before the first step; then the same while the
+        first step's start-up transient gives no measure, or once the run is within FREEZE_DECADES of its
+        criterion; else :meth:`decide`'s."""
+        if residuals is None:
+            self._action = self.start()
+            return list(self._action)
         now = _distance(residuals, self.criterion)
         last, self._last = self._last, now
-        if last is None or not math.isfinite(now):  # the first step is the start-up transient: hold
-            return list(self._action)
-        gain = last - now
-        if gain > NOISE_DECADES:
-            target, share = self.high, RAISE_SHARE
-        elif gain < -GROWTH_DECADES:
-            target, share = self.low, LOWER_SHARE
-        else:
-            return list(self._action)
-        self._action = _clip([a + share * (t - a) for a, t in zip(self._action, target, strict=True)],
-                             self.low, self.high)
+        if last is not None and math.isfinite(now) and now > FREEZE_DECADES:
+            self._action = _clip(self.decide(now, last - now), self.low, self.high)
         return list(self._action)
+
+    def decide(self, now: float, gain: float) -> list[float]:
+        """The next factors, given the run's distance now and the decades it gained over the step."""
+        raise NotImplementedError
+
+
+@dataclass
+class ResidualRule(_Rule):
+    """Start a SIMPLEC case at its box's top and a plain-SIMPLE one at its own factors; after a step that
+    took the run's distance below its best, move each factor RAISE_SHARE of the way up to the box's top;
+    once the distance is GROWTH_DECADES above its best, go back to the case's own factors for good (the
+    box's top is not this run's). Otherwise hold. See the module docstring."""
+
+    _best: float = math.inf
+    _capped: bool = False
+
+    def start(self) -> list[float]:
+        return list(self.high) if self.simplec else super().start()
+
+    def decide(self, now: float, gain: float) -> list[float]:
+        self._best = min(self._best, now + gain)  # the step's start (a frozen step's too) counts
+        if now < self._best - NOISE_DECADES:
+            self._best = now
+            return self._action if self._capped else _toward(self._action, self.high, RAISE_SHARE)
+        if now > self._best + GROWTH_DECADES and not self._capped:
+            self._capped = True
+            return _clip(self.own, self.low, self.high)
+        return self._action
+
+
+@dataclass
+class Bandit(_Rule):
+    """UCB1 over ARMS factor triples on the line from the case's own factors to its box's top corner, one
+    arm a step of BANDIT_INTERVAL iterations, rewarded by the decades the run gained per 100 iterations
+    over that step: a rate in log space, which a run converging at a steady rate keeps from its first
+    step to its last (a raw drop of the residual shrinks with the residual itself), so early and late
+    steps weigh alike. Arms are first tried upward from the case's own; a step that grew the residuals by
+    more than GROWTH_DECADES removes its arm and every arm above it (a higher factor is the riskier one).
+    Within FREEZE_DECADES of the criterion it stops exploring and plays on (see FREEZE_DECADES)."""
+
+    _arm: int = 0
+    _pulls: list[int] = field(default_factory=list)
+    _total: list[float] = field(default_factory=list)
+    _arms: int = ARMS
+
+    def arm(self, k: int) -> list[float]:
+        """Arm k's factors: k / (ARMS - 1) of the way from the case's own (in the box) to the box's top."""
+        return _toward(_clip(self.own, self.low, self.high), self.high, k / (ARMS - 1))
+
+    def decide(self, now: float, gain: float) -> list[float]:
+        if not self._pulls:
+            self._pulls, self._total = [0] * ARMS, [0.0] * ARMS
+        rate = gain * 100 / BANDIT_INTERVAL
+        self._pulls[self._arm] += 1
+        self._total[self._arm] += rate
+        if gain < -GROWTH_DECADES and self._arm > 0:
+            self._arms = min(self._arms, self._arm)
+        self._arm = self._choose()
+        return self.arm(self._arm)
+
+    def _choose(self) -> int:
+        untried = [k for k in range(self._arms) if self._pulls[k] == 0]
+        if untried:
+            return untried[0]
+        n = sum(self._pulls[: self._arms])
+        means = [self._total[k] / self._pulls[k] for k in range(self._arms)]
+        spread = max(max(means) - min(means), NOISE_DECADES * 100 / BANDIT_INTERVAL)
+        scores = [means[k] + spread * math.sqrt(2 * math.log(n) / self._pulls[k]) for k in range(self._arms)]
+        return max(range(self._arms), key=scores.__getitem__)
 
 
 #: The rules solve offers (``--controller NAME``), and the step length each decides at.
-RULES: dict[str, type[ResidualRule]] = {"residual-rule": ResidualRule}
-INTERVALS = {"residual-rule": RULE_INTERVAL}
+RULES: dict[str, type[_Rule]] = {"residual-rule": ResidualRule, "bandit": Bandit}
+INTERVALS = {"residual-rule": RULE_INTERVAL, "bandit": BANDIT_INTERVAL}
 
 
 @dataclass(frozen=True)
@@ -125,8 +211,10 @@ class RulePolicy:
 
     def provenance(self) -> dict[str, Any]:
         """What solve.json records of the rule: its name, step length and constants."""
-        return {"rule": self.name, "interval": INTERVALS[self.name], "raise_share": RAISE_SHARE,
-                "lower_share": LOWER_SHARE, "noise_decades": NOISE_DECADES, "growth_decades": GROWTH_DECADES,
+        constants = {"noise_decades": NOISE_DECADES, "growth_decades": GROWTH_DECADES,
+                     "freeze_decades": FREEZE_DECADES}
+        constants.update({"raise_share": RAISE_SHARE} if self.name == "residual-rule" else {"arms": ARMS})
+        return {"rule": self.name, "interval": INTERVALS[self.name], **constants,
                 "about": "no training: jaxsimrl.solve.rules"}
 
     def watchdog(self, settings: WatchdogSettings) -> WatchdogSettings:
@@ -137,6 +225,6 @@ class RulePolicy:
         return dataclasses.replace(settings, stall_steps=steps)
 
     def for_case(self, criterion: Mapping[str, float], own: Sequence[float], low: Sequence[float],
-                 high: Sequence[float]) -> ResidualRule:
-        """The rule for a case's criterion, own factors and box."""
-        return RULES[self.name](criterion, own, low, high)
+                 high: Sequence[float], simplec: bool) -> _Rule:
+        """The rule for a case's criterion, own factors, box and algorithm (``simplec``: consistent)."""
+        return RULES[self.name](criterion, own, low, high, simplec)

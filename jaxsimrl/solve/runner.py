@@ -41,7 +41,9 @@ from jaxsimrl.solve.report import SolveReport, build_report, preload_plotting, w
 from jaxsimrl.solve.rules import RulePolicy
 from jaxsimrl.solve.settings import (
     DEFAULT_MAX_ITERATIONS,
+    OWN_CHECK,
     CheckedCase,
+    check_factor,
     not_applicable,
     observation_factor,
     own_action,
@@ -57,7 +59,7 @@ COMPARE_DIR = "compare"
 
 def solve_case(case: str | Path, out: str | Path, policy: Any = None,
                compare: bool = False, compare_constant: Sequence[float] | None = None,
-               max_iterations: int | None = None, confirm_alpha_u: float | None = 0.9,
+               max_iterations: int | None = None, confirm_alpha_u: float | str | None = OWN_CHECK,
                watchdog: WatchdogSettings | None = None,
                action_box: tuple[Sequence[float], Sequence[float]] | None = None,
                step_timeout_s: float = 300.0, inlet_patch: str = "inlet",
@@ -66,7 +68,9 @@ def solve_case(case: str | Path, out: str | Path, policy: Any = None,
     """Run ``case`` with the controller (``policy``: a run directory, a :class:`Controller`, a policy from
     ``jaxsimrl.load_policy``, or None for the shipped one) into ``out``; see the module docstring. Bad
     input (a missing or decomposed case, a non-empty ``out``, a case the bridge cannot drive, a bad
-    policy): one-line ValueError before any result is claimed. ``action_box`` replaces the case's own box
+    policy): one-line ValueError before any result is claimed. ``confirm_alpha_u``: the convergence
+    check's alpha_u (foam_bridge.confirm; "own", the default: the case's own alpha_u, see
+    :func:`jaxsimrl.solve.settings.check_factor`; None: no check). ``action_box`` replaces the case's own box
     (experiments only); ``inlet_patch``: the patch whose mean |U|^2 the controller observes;
     ``residual``: the convergence criterion instead of the case's residualControl, for every run of the
     solve and written into ``out``'s fvSolution (jaxsimrl.solve.criterion: ``1e-4``, ``{"p": 1e-3}`` or
@@ -126,7 +130,7 @@ def _check_paths(case: str | Path, out: str | Path) -> tuple[Path, Path]:
 
 
 def _solve(case: Path, out: Path, policy: Any, compare: bool, constant: Sequence[float] | None,
-           max_iterations: int | None, confirm: float | None, watchdog: WatchdogSettings,
+           max_iterations: int | None, confirm: float | str | None, watchdog: WatchdogSettings,
            env: tuple[Any, float, str], residual: Residual | str | None, begin: tuple[int, str],
            say: Callable[[str], None], started: float, others: list[OwnProcess],
            rule: str | None) -> SolveReport:
@@ -145,6 +149,7 @@ def _solve(case: Path, out: Path, policy: Any, compare: bool, constant: Sequence
         raise ValueError(f"case {case}: its endTime is not after the time {start} it starts from: give "
                          f"--max-iterations N (or --from-time)")
     budget = max_iterations or settings.budget or DEFAULT_MAX_ITERATIONS
+    confirm = check_factor(settings) if confirm == OWN_CHECK else confirm
     cfg, checked = solve_config(case, trained, out / WORK_DIR, budget, confirm, *env, residual=residual,
                                 start_time=start)
     phases["case_check_s"], mark = time.monotonic() - mark, time.monotonic()
@@ -182,6 +187,7 @@ def _solve(case: Path, out: Path, policy: Any, compare: bool, constant: Sequence
     report.data["settings"]["criterion"] = reported(cfg.convergence)
     report.data["settings"]["criterion_from"] = criterion_from
     report.data["settings"]["started_from"] = started_from
+    report.data["settings"]["algorithm"] = settings.variant
     report.data["result"]["converged_by"] = converged_by(run, rescue, criterion_from)
     for name, other in results.items():
         report.data["compare"][name]["converged_by"] = own_converged_by(other, criterion_from)
@@ -197,7 +203,8 @@ def _controlled(cfg: Any, trained: Any, settings: Any, controller: Any, watchdog
     fallback = own_action(settings, cfg, len(cfg.action_low))
     rule = controller.policy if isinstance(controller, Controller) else None
     if isinstance(rule, RulePolicy):  # a rule reads residuals only: it applies to any case
-        made = rule.for_case(dict(cfg.convergence), fallback, cfg.action_low, cfg.action_high)
+        made = rule.for_case(dict(cfg.convergence), fallback, cfg.action_low, cfg.action_high,
+                             settings.variant == "SIMPLEC")
         return drive(cfg, lambda speed: made, fallback, rule.watchdog(watchdog), say, checked)
     skip = not_applicable(trained, settings, checked.info.solved_fields)
     if skip is not None:
