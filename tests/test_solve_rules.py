@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import math
 import random
+import re
 from pathlib import Path
 
 import pytest
@@ -103,9 +104,15 @@ def test_a_rule_converges_a_coarse_case_inside_its_box(tmp_path: Path, name: str
         # plain SIMPLE at these factors stalls on this coarse mesh at p 0.14, U 5e-3 (its own run too)
         solution.write_text(text.replace("p               5e-2;", "p               0.3;")
                             .replace("U               1e-3;", "U               1e-2;"))
-    report = solve_case(case, tmp_path / "out", rule=name, step_timeout_s=120)
+    lines: list[str] = []
+    report = solve_case(case, tmp_path / "out", rule=name, step_timeout_s=120, say=lines.append)
     data = json.loads((tmp_path / "out" / "solve.json").read_text())
     assert report.converged and data["result"]["fields_from"] == "the controller"
+    # every step's line shows the criterion's residuals where the run stands (a user watches it converge)
+    step_lines = [line for line in lines if re.match(r"\s+\d+ it  factors", line)]
+    assert len(step_lines) == len(data["steps"])
+    last = data["steps"][-1]["residuals"]
+    assert f"U {last['U']:.1e}/" in step_lines[-1] and f"p {last['p']:.1e}/" in step_lines[-1]
     assert data["controller"]["rule"] == name
     assert data["settings"]["interval"] == RulePolicy(name).env_params.interval
     low, high = data["settings"]["action_low"], data["settings"]["action_high"]

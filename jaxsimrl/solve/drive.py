@@ -54,6 +54,12 @@ class LearnedActor:
         return [float(a) for a in np.asarray(action).reshape(-1)]
 
 
+def _residual_text(residuals: Mapping[str, float], criterion: Mapping[str, float]) -> str:
+    """The criterion's fields' residuals at the step's end, as a user reads them ("U 2.1e-04/1e-03")."""
+    return "  ".join(f"{name} {residuals[name]:.1e}/{threshold:g}" for name, threshold in criterion.items()
+                     if name in residuals)
+
+
 def drive(cfg: FoamEnvConfig, actor: Callable[[float], Actor], fallback: list[float],
           watchdog: WatchdogSettings, say: Callable[[str], None],
           make_env: Callable[[Any, Path, int], Any] | None = None) -> ControlledRun:
@@ -101,7 +107,8 @@ def _loop(backend: Any, request: Any, actor: Actor, fallback: list[float], obs: 
         run.cause, residuals = info.get("cause", ""), info["residuals"]
         run.steps.append({**step, "to_iteration": run.iterations, "residuals": residuals,
                           "outcome": run.outcome})
-        say(f"  {run.iterations:5d} it  factors {', '.join(f'{a:.3f}' for a in action)}  ({source})")
+        say(f"  {run.iterations:5d} it  factors {', '.join(f'{a:.3f}' for a in action)}  ({source})  "
+            f"{_residual_text(residuals, dog.criterion)}")
         if terminated or truncated:
             run.record = dict(info.get("episode") or {})
             return
