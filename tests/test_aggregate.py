@@ -54,6 +54,7 @@ def test_profile_is_the_fraction_of_agents_above_each_threshold():
     assert band.shape == (2, 4) and np.all(band[0] <= profile) and np.all(profile <= band[1])
 
 
+@pytest.mark.slow  # trains and evaluates a batch
 def test_eval_of_a_batch_reports_iqm_with_interval_and_draws_the_profile(tmp_path, capsys):
     batch = train_batch(tmp_path / "three", (0, 1, 2))
     code, out, _ = run_cli(["eval-lorenz", str(batch), "--episodes", "2"], capsys)

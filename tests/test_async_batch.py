@@ -307,6 +307,7 @@ ALL_PLACES = {"with learner", "step in flight", "reset in flight (ended)", "rese
               "ended, ready", "reset failed"}
 
 
+@pytest.mark.slow  # many batches
 def test_a_snapshot_in_every_state_replays_into_a_new_batch_that_goes_on_as_the_first():
     """Snapshots after recv (a checkpoint's moment), through JSON, replayed into a batch of other seeds:
     its snapshot is the same, and from there each env returns the rows the first batch's env returned."""

@@ -130,6 +130,7 @@ def test_gae_per_env_matches_a_numpy_loop_over_each_env_s_own_steps():
     np.testing.assert_allclose(np.asarray(targets), expected + values, rtol=1e-5, atol=1e-6)
 
 
+@pytest.mark.slow  # compiles the loss for a batch
 def test_rows_of_weight_zero_count_in_no_loss():
     rng = np.random.default_rng(1)
     config = PPO
@@ -154,6 +155,7 @@ def test_rows_of_weight_zero_count_in_no_loss():
         np.testing.assert_allclose(float(metrics[name]), float(expected_metrics[name]), rtol=1e-5, atol=1e-7)
 
 
+@pytest.mark.slow  # trainer: compiles and trains
 def test_one_callback_per_learner_step_and_each_env_s_episodes_are_the_standin_s(trainer):
     batch = Recorded(CFG, num_envs=E, batch_size=B, pool=2, seed=0, make_env=StandIn(FAST))
     rows, episodes, _ = _train(trainer, batch, updates=3)
@@ -176,6 +178,7 @@ def test_one_callback_per_learner_step_and_each_env_s_episodes_are_the_standin_s
     assert rows[0]["mean_episode_return"] == pytest.approx(-np.mean(first))
 
 
+@pytest.mark.slow  # trainer: compiles and trains
 def test_each_env_s_transitions_pair_its_actions_with_its_own_results(trainer):
     ppo, vec = trainer
     batch = Recorded(CFG, num_envs=E, batch_size=B, pool=2, seed=0, make_env=StandIn(FAST))
@@ -202,6 +205,7 @@ def test_each_env_s_transitions_pair_its_actions_with_its_own_results(trainer):
     assert checked  # some episodes ran whole within the rollout
 
 
+@pytest.mark.slow  # trainer: compiles and trains
 def test_a_killed_worker_ends_its_envs_episodes_and_training_goes_on(trainer):
     slow = Profile(iterations=(400,), seconds_per_iteration=(5e-4,), reset_s=0.002)  # 50 ms steps
     batch = Recorded(CFG, num_envs=E, batch_size=B, pool=2, seed=0, make_env=StandIn(slow),
@@ -216,6 +220,7 @@ def test_a_killed_worker_ends_its_envs_episodes_and_training_goes_on(trainer):
     assert len(episodes) > len(crashed) and all(np.isfinite(row["value_loss"]) for row in rows)
 
 
+@pytest.mark.slow  # trainer: compiles and trains
 def test_a_failed_reset_is_a_non_transition_and_training_goes_on(trainer):
     make = FailingResets(FAST, env_id=0, failing=(2,))  # env 0's first auto-reset fails, its retry works
     batch = Recorded(CFG, num_envs=E, batch_size=B, pool=2, seed=0, make_env=make)
@@ -279,6 +284,7 @@ def test_train_foam_runs_asynchronously_with_its_async_envs_fixed_on_resume(tmp_
     assert code == 2 and "differs from" in capsys.readouterr().err
 
 
+@pytest.mark.slow  # train-foam runs (stand-in solver) killed and resumed
 def test_train_foam_killed_and_resumed_loses_no_episode_and_doubles_none(tmp_path, capsys):
     """SIGKILL after the second checkpoint, then --resume: the episodes in flight are replayed, so each
     env's episodes are those of the same run never interrupted (its seed stream's, once each). The

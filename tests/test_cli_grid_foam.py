@@ -215,6 +215,7 @@ def test_default_grid_cell_runs_the_papers_simplec_with_k_omega_at_0_8(capsys, t
     assert (cells["plain"].outcome, cells["plain"].iterations) != ("converged", info["iterations"])
 
 
+@pytest.mark.slow  # a grid of whole runs
 @needs_openfoam
 def test_grid_end_to_end_matches_the_env(capsys, tmp_path):
     from foam_bridge.env import FoamCaseEnv
@@ -291,6 +292,7 @@ def test_two_slots_freed_in_one_step_with_one_cell_left_start_only_that_cell(mon
     assert pool.resets == [0, 1, 0]
 
 
+@pytest.mark.slow  # slow_case: steps over a minute
 @needs_openfoam
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
 def test_a_stopped_grid_on_a_refined_mesh_leaves_no_solver_within_5_s(tmp_path, sig):

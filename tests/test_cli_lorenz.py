@@ -183,6 +183,7 @@ def test_closing_summary_and_rerun_into_same_out_is_refused(tiny_run, capsys):
     assert code == 0 and "done: 5 updates, 320 env steps" in out and "eval-lorenz" in out
 
 
+@pytest.mark.slow  # trains twice
 def test_resuming_a_finished_annealed_run_with_more_steps_trains_at_a_nonzero_rate(tmp_path, capsys):
     run = tmp_path / "annealed"
     config = write_json(tmp_path / "anneal.json", {"anneal_lr": True})

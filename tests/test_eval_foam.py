@@ -412,6 +412,7 @@ def test_best_constant_is_the_grids_best_and_matches_the_env_run_directly(evalua
     assert run["linear_iterations"] == cost.total and run["p_linear_iterations"] == cost.of("p")
 
 
+@pytest.mark.slow  # a grid of real runs
 @needs_openfoam
 def test_the_case_oracle_runs_its_grid_on_the_case_and_keeps_the_best(saved_run, tmp_path, capsys):
     out = tmp_path / "oracle"
@@ -461,6 +462,7 @@ def _run_directly(cfg, uid, factors, case_copy):
     return info, final_field(case_copy, "U")
 
 
+@pytest.mark.slow  # evaluation and another eval-foam run
 @needs_openfoam
 def test_a_subset_of_controllers_runs_only_those_and_the_same_episodes(evaluation, saved_run, tmp_path):
     from foam_bridge.config import without_convergence_test
@@ -517,6 +519,7 @@ def test_a_subset_of_controllers_runs_only_those_and_the_same_episodes(evaluatio
         [cell["runs"][0]["u_error"], run["u_error"]])
 
 
+@pytest.mark.slow  # several eval-foam runs
 @needs_openfoam
 def test_a_reference_cache_reuses_a_reference_only_for_the_same_inputs(saved_run, tmp_path):
     cache = tmp_path / "cache"

@@ -63,6 +63,7 @@ def test_trajectory_png_is_a_valid_image(evaluated, trained):
     assert blue.sum() > 1000 and black.sum() > 1000
 
 
+@pytest.mark.slow  # two more evaluations
 def test_same_seed_gives_same_numbers_and_another_seed_other_states(evaluated, trained):
     assert main(["eval-lorenz", str(trained), "--episodes", str(EPISODES), "--seed", "5"]) == 0
     again = json.loads((trained / "eval.json").read_text())

@@ -175,6 +175,7 @@ def test_repeated_conditions_are_one_line_exit_2(capsys, tmp_path):
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.slow  # a grid of whole runs
 @needs_openfoam
 def test_grid_foam_over_two_conditions(capsys, tmp_path):
     out = tmp_path / "family"

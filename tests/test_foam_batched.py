@@ -158,6 +158,7 @@ def run_until_each_env_ended(env: BatchedFoamEnv, episodes: int, action=SAFE_ACT
     raise AssertionError(f"episodes did not end within {max_steps} steps: {[len(e) for e in ended]}")
 
 
+@pytest.mark.slow  # real episodes to their end
 @needs_openfoam
 def test_pool_of_two_runs_two_cases_with_autoreset_and_accounting(tmp_path):
     with BatchedFoamEnv(COARSE, 2, pool=2, work_dir=tmp_path, seed=1) as env:
@@ -183,6 +184,7 @@ def test_pool_of_two_runs_two_cases_with_autoreset_and_accounting(tmp_path):
             assert record["final_obs"][0] != pytest.approx(record["next_obs"][0], rel=1e-3)
 
 
+@pytest.mark.slow  # a worker killed, episodes to their end
 @needs_openfoam
 def test_killed_worker_ends_only_its_episode_and_is_replaced(tmp_path):
     with BatchedFoamEnv(COARSE, 2, pool=2, work_dir=tmp_path, seed=2) as env:
@@ -227,6 +229,7 @@ def _is_zombie(pid: int) -> bool:
         return handle.read().split(")")[-1].split()[0] == "Z"
 
 
+@pytest.mark.slow  # two batches of real episodes
 @needs_openfoam
 def test_a_snapshot_replays_the_running_episodes_into_a_new_batch_exactly(tmp_path):
     """Three steps, snapshot (through JSON, as a checkpoint holds it), then the original batch and a new

@@ -45,6 +45,7 @@ def _episode(cfg: FoamEnvConfig, schedule) -> tuple[list[dict], dict, list[dict]
                 return infos, info["episode"], list(env.parser.history)
 
 
+@pytest.mark.slow  # real runs and their checks
 @needs_openfoam
 def test_an_honest_run_is_confirmed_where_the_solver_stopped(tmp_path):
     plain, plain_record, _ = _episode(_cfg(tmp_path / "plain"), HONEST)
@@ -59,6 +60,7 @@ def test_an_honest_run_is_confirmed_where_the_solver_stopped(tmp_path):
     assert check["residuals"]["U"] < check["solver_residuals"]["U"]
 
 
+@pytest.mark.slow  # real runs and their checks
 @needs_openfoam
 def test_a_relaxation_artefact_fails_the_check_and_the_run_goes_on(tmp_path):
     plain, _, plain_history = _episode(_cfg(tmp_path / "plain"), DROP)
@@ -100,6 +102,7 @@ def test_turbulence_fields_are_checked_only_when_the_step_relaxed_them_below_the
     assert step_turbulence_factor(fixed, (0.95, 0.9)) is None and _checked_fields(fixed) == ("U",)
 
 
+@pytest.mark.slow  # real runs and their checks
 @needs_openfoam
 def test_alpha_t_dropped_below_the_check_on_the_last_step_is_caught(tmp_path):
     """A criterion whose binding field is k (its residual at 0.95 levels off at ~3.5e-4 > 2.5e-4):

@@ -113,6 +113,7 @@ def test_new_factors_govern_the_iteration_after_the_pause(tmp_path: Path) -> Non
     assert constant[20]["Ux"] != switched[20]["Ux"]
 
 
+@pytest.mark.slow  # whole runs
 def test_test_criterion_converges_later_than_training_criterion(tmp_path: Path) -> None:
     iterations = {}
     for name, convergence in (("train", None), ("test", dict(TEST_CONVERGENCE))):
@@ -130,6 +131,7 @@ def test_test_criterion_converges_later_than_training_criterion(tmp_path: Path) 
     assert iterations["train"] < iterations["test"] < 1000
 
 
+@pytest.mark.slow  # diverging runs, twice
 def test_divergence_is_deterministic_with_the_penalty_and_a_bounded_observation(tmp_path: Path) -> None:
     """The same diverging episode 3x: same K, outcome, cause and record; the state never blows up."""
     cfg = _cfg(tmp_path, mesh_scale=0.25, interval=10, max_iterations=1000)

@@ -54,6 +54,7 @@ def test_the_third_action_sets_the_box_and_its_text():
     assert FoamEnvConfig().action_size == 2 and FoamEnvConfig().action_low == (0.2, 0.2)
 
 
+@pytest.mark.slow  # real runs
 @needs_openfoam
 def test_alpha_t_reaches_the_solver(tmp_path):
     """The same seed and (alpha_u, alpha_p): k's residuals differ between alpha_t 0.3 and 0.9 from the
@@ -67,6 +68,7 @@ def test_alpha_t_reaches_the_solver(tmp_path):
     assert fixed == low
 
 
+@pytest.mark.slow  # real runs
 @needs_openfoam
 def test_the_convergence_check_reads_k_and_omega_at_its_own_fixed_factor(tmp_path):
     """With alpha_t an action the agent moves the k/omega residuals the criterion reads, as alpha_u moves
@@ -90,6 +92,7 @@ def test_the_convergence_check_reads_k_and_omega_at_its_own_fixed_factor(tmp_pat
     assert not meets(cfg, {**check["residuals"], "k": 2 * cfg.convergence["k"]}, ("U", "k", "omega"))
 
 
+@pytest.mark.slow  # real runs
 @needs_openfoam
 def test_the_closed_loop_observation(tmp_path):
     cfg = _cfg(tmp_path, relax_k_omega="action", residual_features=1, observe_progress=True,
@@ -162,6 +165,7 @@ def test_a_fixed_height_draws_the_velocities_it_always_drew(tmp_path):
 TUTORIALS = Path("/usr/share/doc/openfoam-examples/examples/incompressible/simpleFoam")
 
 
+@pytest.mark.slow  # real runs
 @needs_openfoam
 @pytest.mark.skipif(not (TUTORIALS / "pitzDaily").is_dir(), reason="openfoam-examples not installed")
 def test_alpha_t_relaxes_a_users_own_turbulence_fields(tmp_path):
@@ -189,6 +193,7 @@ def test_alpha_t_relaxes_a_users_own_turbulence_fields(tmp_path):
     assert len(own.action_low) == 3 and own.action_low[2] == own.action_low[0]
 
 
+@pytest.mark.slow  # real runs
 @needs_openfoam
 def test_the_gym_env_takes_the_new_fields(tmp_path):
     import gymnasium

@@ -259,6 +259,7 @@ def _dying_start(backend, worker: int) -> None:
     backend._procs[worker], backend._conns[worker] = proc, parent_end
 
 
+@pytest.mark.slow  # a fault test of many episodes
 @needs_openfoam
 def test_failed_auto_resets_never_raise_nor_misplace_an_action(tmp_path, monkeypatch):
     actions = np.tile(ACTION, (2, 1))
@@ -333,6 +334,7 @@ def _solvers_under(path: Path) -> list[int]:
     return found
 
 
+@pytest.mark.slow  # a fault test: processes killed mid-step
 @needs_openfoam
 @pytest.mark.parametrize("batch", ["lock-step", "async"])
 @pytest.mark.parametrize("victims", [("worker",), ("driver",), ("driver", "workers")])
@@ -419,6 +421,7 @@ if __name__ == "__main__":
 """
 
 
+@pytest.mark.slow  # slow_case: steps over a minute
 @needs_openfoam
 def test_a_driver_killed_mid_step_leaves_no_solver_after_5_s(tmp_path):
     """kill -9 of the driver while its worker is inside a step that lasts over a minute: the worker

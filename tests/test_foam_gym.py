@@ -44,6 +44,7 @@ def test_failed_construction_leaves_no_directory(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.slow  # gymnasium's checker: many real episodes
 @needs_openfoam
 def test_single_env_passes_check_env(tmp_path):
     env = gym.make(foam_bridge.ENV_ID, work_dir=str(tmp_path), **COARSE)
@@ -59,6 +60,7 @@ def test_single_env_passes_check_env(tmp_path):
         env.close()
 
 
+@pytest.mark.slow  # real episodes to their end
 @needs_openfoam
 def test_vector_env_autoresets_in_the_same_step(tmp_path):
     envs = gym.make_vec(foam_bridge.ENV_ID, num_envs=2, pool=2, seed=0, work_dir=str(tmp_path), **COARSE)

@@ -10,6 +10,8 @@ from foam_marks import needs_openfoam
 from foam_bridge.batched import BatchedFoamEnv
 from foam_bridge.config import FoamEnvConfig
 
+pytestmark = pytest.mark.slow  # a local Ray instance and its workers: tens of seconds
+
 COARSE = FoamEnvConfig(mesh_scale=0.4, simple_variant="SIMPLEC", relax_k_omega=0.8, max_iterations=200,
                        step_timeout_s=60.0)
 # Different factors per env and per step, so a mix-up of envs or steps would change the residuals; all

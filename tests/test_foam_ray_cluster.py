@@ -226,6 +226,7 @@ def label_of(node: Any) -> str:
     return "/" + node.node_id[:8]
 
 
+@pytest.mark.slow  # a Ray cluster, a node killed
 @needs_openfoam
 @pytest.mark.parametrize("batch", BATCHES)
 def test_a_lost_node_ends_its_episodes_and_the_batch_goes_on_with_the_survivor(tmp_path, batch):
@@ -261,6 +262,7 @@ def test_a_lost_node_ends_its_episodes_and_the_batch_goes_on_with_the_survivor(t
         assert not solver_pids(tmp_path)
 
 
+@pytest.mark.slow  # a Ray cluster, nodes killed
 @needs_openfoam
 @pytest.mark.parametrize("batch", BATCHES)
 def test_a_node_that_joined_later_takes_the_replacement_and_no_node_left_is_one_error(tmp_path, batch):
@@ -339,6 +341,7 @@ def test_episodes_csv_records_the_node_and_reads_older_files_without_it(tmp_path
     assert [row["node"] for row in EpisodeLog.load(path, 1).rows] == ["", ""]
 
 
+@pytest.mark.slow  # a real solver episode on the local pool
 @needs_openfoam
 def test_the_local_pool_records_this_host_as_the_node(tmp_path):
     with BatchedFoamEnv(COARSE, 1, pool=1, work_dir=tmp_path, seed=5) as env:
@@ -370,6 +373,7 @@ def wait_until(condition: Callable[[], bool], process: subprocess.Popen, what: s
         time.sleep(0.5)
 
 
+@pytest.mark.slow  # a Ray cluster, train-foam: minutes
 @needs_openfoam
 @pytest.mark.parametrize("batch", BATCHES)
 def test_train_foam_goes_on_after_a_node_loss_and_a_killed_driver_loses_no_episode(tmp_path, batch):
@@ -429,6 +433,7 @@ def test_train_foam_goes_on_after_a_node_loss_and_a_killed_driver_loses_no_episo
         _check_resumed_after_a_kill(processes, tmp, run, target, common, joined, envs)
 
 
+@pytest.mark.slow  # a Ray cluster, train-foam
 @needs_openfoam
 @pytest.mark.parametrize("batch", BATCHES)
 def test_train_foam_with_no_node_left_stops_in_one_line_saying_how_to_resume(tmp_path, batch):

@@ -75,6 +75,7 @@ def _episode(tmp_path: Path, name: str, action: tuple[float, float], **overrides
                 return rewards, {**info["episode"], "log": read_solver_cost(env.case_dir)}
 
 
+@pytest.mark.slow  # whole runs
 @needs_openfoam
 def test_linear_iterations_reward_is_the_logs_inner_iteration_count(tmp_path: Path) -> None:
     plain, plain_record = _episode(tmp_path, "plain", BEST)
@@ -88,6 +89,7 @@ def test_linear_iterations_reward_is_the_logs_inner_iteration_count(tmp_path: Pa
     assert record["linear_iterations"] > 5 * record["iterations"]  # U, p, k, omega: >= 1 each
 
 
+@pytest.mark.slow  # whole runs
 @needs_openfoam
 def test_solver_time_reward_is_the_solvers_cpu_seconds(tmp_path: Path) -> None:
     rewards, record = _episode(tmp_path, "time", BEST, reward="solver-time")
@@ -129,6 +131,7 @@ def _flags(tmp_path: Path, name: str, crash_at: int | None) -> Episode:
                 return rewards, terminated, truncated, info["outcome"]
 
 
+@pytest.mark.slow  # whole runs
 @needs_openfoam
 def test_a_capped_runs_learning_target_is_never_below_a_failed_runs(tmp_path: Path) -> None:
     """The cap is the task's budget: a capped episode is terminated (no bootstrap), so whatever the critic

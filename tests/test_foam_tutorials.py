@@ -98,6 +98,7 @@ def _run_and_read_back(tmp_path: Path, name: str, action, outcome: str = "conver
     return tutorial["system/fvSolution"]["relaxationFactors"], solution["relaxationFactors"], control, final
 
 
+@pytest.mark.slow  # a whole tutorial run
 def test_pitz_daily_converges_with_its_own_simplec_and_relaxation(tmp_path: Path) -> None:
     own, used, control, final = _run_and_read_back(tmp_path, "pitzDaily", (0.9, 0.9))
     assert used["equations"] == {**own["equations"], "U": 0.9} and own["equations"]['".*"'] == 0.9
@@ -106,6 +107,7 @@ def test_pitz_daily_converges_with_its_own_simplec_and_relaxation(tmp_path: Path
     assert final["inlet_velocity"] == 10.0  # the tutorial's inlet speed, reported
 
 
+@pytest.mark.slow  # a whole tutorial run
 def test_air_foil_2d_converges_with_plain_simple_and_its_own_factors(tmp_path: Path) -> None:
     own, used, _, final = _run_and_read_back(tmp_path, "airFoil2D", (0.7, 0.3))
     assert own == {"fields": {"p": 0.3}, "equations": {"U": 0.7, "nuTilda": 0.7}}
@@ -113,12 +115,14 @@ def test_air_foil_2d_converges_with_plain_simple_and_its_own_factors(tmp_path: P
     assert np.isnan(final["inlet_velocity"])  # a freestream inlet has no value to report
 
 
+@pytest.mark.slow  # a whole tutorial run
 def test_t3a_converges_and_keeps_its_transition_model_factors(tmp_path: Path) -> None:
     own, used, control, _ = _run_and_read_back(tmp_path, "T3A", (0.9, 0.9))
     assert used["equations"] == {'".*"': 0.9, "U": 0.9} and own["equations"] == {'".*"': 0.9}
     assert {"wallShearStress", "kGraph"} <= set(control["functions"])
 
 
+@pytest.mark.slow  # whole tutorial runs
 def test_air_foil_2d_convergence_checked_at_its_own_and_at_a_higher_relaxation(tmp_path: Path) -> None:
     """The convergence check (confirm_alpha_u) on a case of plain SIMPLE with Spalart-Allmaras (no k or
     omega) that writes ascii fields, at its own factors (0.7, 0.3)."""
@@ -143,6 +147,7 @@ def test_air_foil_2d_convergence_checked_at_its_own_and_at_a_higher_relaxation(t
     assert higher["iterations"] % 50 == 0 and sum(rewards) == -higher["iterations"]
 
 
+@pytest.mark.slow  # a whole tutorial run
 def test_backward_facing_step_2d_runs_capped_with_its_include_funcs(tmp_path: Path) -> None:
     # the paper's case (20,540 cells, six function objects of its own): two steps of 25 iterations,
     # then the cap, to keep the test short
@@ -169,6 +174,7 @@ def _air_foil_with_directives(tmp_path: Path) -> Path:
     return case
 
 
+@pytest.mark.slow  # a whole tutorial run
 def test_a_case_with_include_var_and_regex_keys_runs_as_written(tmp_path: Path) -> None:
     case = _air_foil_with_directives(tmp_path)
     before = {p: p.read_bytes() for p in case.rglob("*") if p.is_file()}
@@ -225,6 +231,7 @@ def test_a_user_case_inlet_for_one_episode_needs_a_fixed_value_inlet(tmp_path: P
         assert np.isnan(info["inlet_velocity"]) and obs[0] > 0
 
 
+@pytest.mark.slow  # a whole tutorial run
 def test_a_case_under_a_path_with_spaces_runs_and_a_work_dir_with_spaces_is_refused(tmp_path: Path) -> None:
     """OpenFOAM itself cannot run a case whose path has a space; the bridge only copies the user's case,
     so the case may live anywhere, and a work_dir it cannot use is refused up front."""
@@ -239,6 +246,7 @@ def test_a_case_under_a_path_with_spaces_runs_and_a_work_dir_with_spaces_is_refu
     assert len(str(raised.value).splitlines()) == 1 and not (tmp_path / "work dir").exists()
 
 
+@pytest.mark.slow  # three tutorial runs
 def test_the_final_field_of_a_tutorial_reads_alike_in_ascii_binary_and_compressed(tmp_path):
     from foamlib import FoamFile
 

@@ -147,6 +147,7 @@ def test_a_case_without_residual_control_is_refused_in_one_line(capsys, tmp_path
     assert foam["convergence"] == {"U": 1e-3, "p": 5e-2}
 
 
+@pytest.mark.slow  # real runs
 @needs_openfoam
 @needs_tutorials
 def test_the_own_box_of_a_plain_simple_case_avoids_the_sigfpe_of_the_built_in_box(tmp_path: Path) -> None:
@@ -191,6 +192,7 @@ def test_systematic_failure_needs_every_episode_failed_the_same_way_and_one_per_
     assert log(capped).systematic_failure(num_envs=4) is None  # not a failure
 
 
+@pytest.mark.slow  # a real train-foam run
 @needs_openfoam
 def test_a_run_whose_episodes_all_fail_the_same_way_stops_non_zero_and_resumable(capsys, tmp_path) -> None:
     """Every episode of the built-in case 'diverges' at iteration 1 under an absurd divergence threshold:

@@ -97,6 +97,7 @@ def _load_script():
     return module
 
 
+@pytest.mark.slow  # a whole run
 @needs_openfoam
 def test_real_coarse_run_reattaches_plausibly(tmp_path: Path) -> None:
     """0.4 mesh, 600 iterations (converged: the paper's test criterion is met near 210)."""
@@ -125,6 +126,7 @@ def test_real_coarse_run_reattaches_plausibly(tmp_path: Path) -> None:
     assert np.all(u[1:-1] > 0)
 
 
+@pytest.mark.slow  # a whole run
 @needs_openfoam
 def test_real_coarse_run_of_the_2h_step_is_measured_in_its_own_step_height(tmp_path: Path) -> None:
     """The 2h geometry (0.4 mesh): lengths in H = 2h from the step and from the floor behind it."""

@@ -16,6 +16,8 @@ import ast
 from collections.abc import Iterator
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("jaxsimrl", "foam_bridge")
 
@@ -118,6 +120,7 @@ def test_the_trained_policy_sits_below_evaluation_introspection_and_solve():
                                             "jaxsimrl.cli"}
 
 
+@pytest.mark.slow  # subprocesses that import JAX
 def test_loading_and_acting_import_no_plotting(tmp_path):
     """jaxsimrl.load_policy and jaxsimrl.policy.load_policy, then one action of the shipped controller, in a
     fresh interpreter: matplotlib (most of a second, on every `jaxsimrl solve`) stays out."""

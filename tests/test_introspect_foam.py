@@ -63,6 +63,7 @@ def test_acting_is_eval_foams_actor(policy):
     np.testing.assert_allclose(policy.act(STATES)[0], theirs, rtol=1e-6)
 
 
+@pytest.mark.slow  # trains a recurrent policy
 def test_a_recurrent_foam_policy_carries_its_memory_as_eval_foams_actor_does(tmp_path):
     from test_eval_foam import save_run
 
@@ -196,6 +197,7 @@ def test_factor_history_pairs_each_action_with_where_it_took_over_and_what_it_an
         factor_history(record, residual="omega")
 
 
+@pytest.mark.slow  # a whole real rollout
 @needs_openfoam
 def test_a_real_rollout_on_the_coarse_mesh_adds_up(policy):
     short = dataclasses.replace(policy.env_params, max_iterations=300)  # three steps, then truncated

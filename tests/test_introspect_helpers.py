@@ -67,6 +67,7 @@ def test_slice_refuses_bad_components():
             policy_slice(LinearPolicy(), x, y, (0, 1), (0, 1))
 
 
+@pytest.mark.slow  # lstm: trains
 def test_slice_of_the_network_matches_acting_on_a_grid_point(lstm):
     policy, record = lstm
     base = record["obs"][0, 10]
@@ -86,6 +87,7 @@ def test_jacobian_of_a_linear_policy_is_its_matrix_at_every_step():
     np.testing.assert_allclose(fig.axes[0].images[0].get_array(), data.jacobian[:, 0, :].T)
 
 
+@pytest.mark.slow  # lstm: trains
 def test_jacobian_of_the_network_matches_finite_differences_from_its_memory(lstm):
     policy, record = lstm
     data = action_sensitivity(policy, record)
@@ -118,6 +120,7 @@ def test_pca_recovers_a_hidden_trajectory_on_a_line():
         hidden_pca({"reward": record["reward"]})
 
 
+@pytest.mark.slow  # lstm: trains
 def test_pca_of_the_network_is_coloured_by_speed(lstm):
     _, record = lstm
     data = hidden_pca(record, components=3)

@@ -167,6 +167,7 @@ def test_lstm_output_after_reset_equals_output_from_a_fresh_carry():
     assert not np.allclose(no_reset_mean[3:], fresh_mean, atol=1e-4)  # the reset did something
 
 
+@pytest.mark.slow  # many compilations
 def test_policy_act_jits_and_vmaps_and_done_resets_the_carry():
     env = Lorenz()
     policy = make_policy(TINY, env, env.default_params())

@@ -11,6 +11,10 @@ import subprocess
 import sys
 import textwrap
 
+import pytest
+
+pytestmark = pytest.mark.slow  # two PPO trainings in a subprocess that compiles them afresh
+
 SCRIPT = textwrap.dedent("""
     import json
     import jax

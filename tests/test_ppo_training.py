@@ -22,6 +22,7 @@ def trainer():
     return make_train(SMALL, Lorenz())
 
 
+@pytest.mark.slow  # trainer: trains; and more trainings
 def test_same_seed_same_metrics_different_seed_different(trainer):
     _, first = trainer.train(jax.random.PRNGKey(7))
     _, again = trainer.train(jax.random.PRNGKey(7))
@@ -34,6 +35,7 @@ def test_same_seed_same_metrics_different_seed_different(trainer):
     assert np.all(np.isfinite(first["policy_loss"])) and np.all(first["entropy"] > 0)
 
 
+@pytest.mark.slow  # trainer: trains
 def test_run_chunk_stops_at_num_updates_and_matches_train(trainer):
     assert (trainer.num_updates, trainer.num_chunks) == (3, 2)
     state = trainer.init(jax.random.PRNGKey(7))
@@ -56,6 +58,7 @@ def test_num_envs_must_divide_over_devices():
         make_train(SMALL, Lorenz(), devices=jax.devices() * 3)
 
 
+@pytest.mark.slow  # trains
 def test_short_training_beats_the_untrained_policy():
     # ~20 s on 2 loaded cores; measured (seed 0, 16 episodes): untrained -36,960 -> trained +12,336 on
     # one machine, -36,946 -> -20,268 on another (2026-12-02, the same code and pinned versions: XLA's

@@ -48,6 +48,13 @@ def _uses_openfoam(code: str) -> bool:
     return "foam_bridge" in code or re.search(r"\bjaxsimrl (grid|train|eval)-foam\b", code) is not None
 
 
+def _is_slow(code: str) -> bool:
+    """A block that trains (train-lorenz, train-foam, make_train), solves a whole case or runs a grid
+    (its comments aside): tens of seconds each, so the quick tier (``-m "not slow"``) leaves it out."""
+    commands = re.compile(r"\b(train-lorenz|train-foam|make_train|grid-foam)\b|\bjaxsimrl solve\b")
+    return commands.search(re.sub(r"#.*", "", code)) is not None
+
+
 def _params() -> list:
     params = []
     for (language, code), where in BLOCKS.items():
@@ -55,6 +62,8 @@ def _params() -> list:
         marks = []
         if _uses_openfoam(code):
             marks = list(OPENFOAM)
+        if _is_slow(code):
+            marks.append(pytest.mark.slow)
         if language == "bash":
             marks.append(pytest.mark.skipif(not IN_A_VENV, reason="the tests run outside a virtual env"))
         params.append(pytest.param(language, code, id=f"{where}: {first[:40].rstrip()}", marks=marks))

@@ -20,6 +20,8 @@ from jaxsimrl.cli.lorenz import INTERRUPTED, run_train
 from jaxsimrl.cli.main import build_parser, main
 from jaxsimrl.runs.checkpoint import Checkpoints
 
+pytestmark = pytest.mark.slow  # trainings run twice, and a real process stopped with Ctrl-C
+
 # 5 updates of 64 steps in chunks of 2: checkpoints after updates 2, 4, 5.
 TINY = [*TINY_FLAGS, "--seed", "3"]
 TIMING = ("wall_time_s", "steps_per_s")

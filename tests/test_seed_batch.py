@@ -63,6 +63,7 @@ def runs(tmp_path_factory):
     return batch, single
 
 
+@pytest.mark.slow  # runs: trains a batch and single seeds
 def test_each_agent_of_a_batch_matches_its_seed_trained_alone(runs):
     batch, single = runs
     rows = metrics(batch)
@@ -77,6 +78,7 @@ def test_each_agent_of_a_batch_matches_its_seed_trained_alone(runs):
                    for a, b in zip(other, metrics(single), strict=True))
 
 
+@pytest.mark.slow  # runs: trains
 def test_run_dir_holds_every_agent(runs):
     batch, _ = runs
     record = json.loads((batch / "config.json").read_text())
@@ -113,6 +115,7 @@ def test_summary_of_agents_is_each_agents_summary_and_their_mean():
     assert summary["total_steps"] == 20 and summary["updates"] == 2
 
 
+@pytest.mark.slow  # runs: trains
 def test_a_batch_resumes_to_exactly_the_uninterrupted_batch(runs, tmp_path, capsys):
     whole, _ = runs
     split = tmp_path / "split"
@@ -132,6 +135,7 @@ def test_a_batch_resumes_to_exactly_the_uninterrupted_batch(runs, tmp_path, caps
         np.testing.assert_array_equal(a, b)
 
 
+@pytest.mark.slow  # runs: trains; evaluates
 def test_eval_takes_one_agent_or_all_of_them(runs, capsys):
     batch, single = runs
     code, out, _ = run_cli(["eval-lorenz", str(batch), "--episodes", "2"], capsys)
@@ -154,6 +158,7 @@ def test_eval_takes_one_agent_or_all_of_them(runs, capsys):
         load_policy(batch)
 
 
+@pytest.mark.slow  # runs: trains; and a sweep
 def test_a_sweep_agent_matches_a_single_run_with_its_values(runs, tmp_path):
     _, single = runs  # seed 3, lr 1e-3
     at = TINY_FLAGS.index("--lr")
@@ -169,6 +174,7 @@ def test_a_sweep_agent_matches_a_single_run_with_its_values(runs, tmp_path):
     assert load_policy(sweep, agent=1).config.lr == 3e-4
 
 
+@pytest.mark.slow  # runs: trains
 def test_plot_draws_a_batch(runs, capsys):
     batch, _ = runs
     code, out, _ = run_cli(["plot", str(batch), "--out", str(batch / "curves.png")], capsys)
@@ -188,6 +194,7 @@ def test_tensorboard_gives_each_agent_its_own_curves(tmp_path):
                        "train/agent-1/update": [(64, 1.0)], "train/agent-1/entropy": [(64, 2.0)]}
 
 
+@pytest.mark.slow  # compiles a batch trainer
 def test_a_batch_too_large_for_memory_is_refused_in_one_line(tmp_path, capsys, monkeypatch):
     needed: list[int] = []
     real = batch_module.compiled_bytes
@@ -251,6 +258,7 @@ TWO_DEVICES = textwrap.dedent("""
 """)
 
 
+@pytest.mark.slow  # two-device subprocess training
 def test_a_batch_sharded_over_two_devices_matches_single_seed_runs_with_episodes():
     proc = subprocess.run([sys.executable, "-c", TWO_DEVICES], env=two_devices_env(), capture_output=True,
                           text=True, timeout=600)

@@ -164,6 +164,7 @@ def test_residual_is_a_threshold_or_named_fields() -> None:
         resolve("q=1e-3", ["U", "p"], Path("c"))
 
 
+@pytest.mark.slow  # whole pitzDaily solves
 def test_a_case_without_residual_control_is_solved_with_residual(tmp_path: Path) -> None:
     case = _without_residual_control(_pitz_daily(tmp_path))
     process = _cli(str(case), "--out", str(tmp_path / "refused"), cwd=tmp_path)
@@ -192,6 +193,7 @@ def test_a_case_without_residual_control_is_solved_with_residual(tmp_path: Path)
     _check_normal_case(out, data["result"]["time_directory"])  # its restart stops at once, converged
 
 
+@pytest.mark.slow  # whole pitzDaily solves
 def test_a_run_time_control_stop_is_converged_by_the_case_criterion(tmp_path: Path) -> None:
     case = _settling_pitz_daily(tmp_path)
     out = tmp_path / "out"
@@ -238,6 +240,7 @@ def _first_time(log: str) -> int:
     return int(next(line for line in log.splitlines() if line.startswith("Time = ")).split()[-1])
 
 
+@pytest.mark.slow  # whole pitzDaily solves
 def test_a_case_with_a_later_time_goes_on_from_it(tmp_path: Path) -> None:
     case, first = _partly_run_pitz_daily(tmp_path)
     out = tmp_path / "out"
@@ -259,6 +262,7 @@ def test_a_case_with_a_later_time_goes_on_from_it(tmp_path: Path) -> None:
     _check_normal_case(out, result["time_directory"])
 
 
+@pytest.mark.slow  # a pitzDaily run
 def test_from_time_picks_the_start_and_an_unknown_one_is_refused(tmp_path: Path) -> None:
     case, first = _partly_run_pitz_daily(tmp_path)
     process = _cli(str(case), "--out", str(tmp_path / "bad"), "--from-time", "50", cwd=tmp_path)
@@ -316,6 +320,7 @@ def pitz_daily_solved(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, P
     return case, out, before, solve_case(case, out, compare=True, step_timeout_s=120)
 
 
+@pytest.mark.slow  # pitz_daily_solved: solve --compare of pitzDaily
 def test_solve_pitz_daily_gives_a_normal_converged_case(pitz_daily_solved) -> None:
     case, out, before, report = pitz_daily_solved
     assert _tree_hash(case) == before  # the user's case is never modified
@@ -337,6 +342,7 @@ def test_solve_pitz_daily_gives_a_normal_converged_case(pitz_daily_solved) -> No
     _check_normal_case(out, result["time_directory"])
 
 
+@pytest.mark.slow  # pitz_daily_solved
 def test_solve_compare_says_the_result_agrees_with_own(pitz_daily_solved) -> None:
     _, out, _, report = pitz_daily_solved
     agreement = json.loads((out / "solve.json").read_text())["compare"]["own"]["agreement"]
@@ -354,6 +360,7 @@ def test_solve_compare_says_the_result_agrees_with_own(pitz_daily_solved) -> Non
     assert "    results agree with own: fields max rel. L2 " in report.summary()
 
 
+@pytest.mark.slow  # pitz_daily_solved and another run
 def test_an_own_run_converged_to_a_looser_criterion_is_flagged(pitz_daily_solved, tmp_path: Path) -> None:
     case, out, _, report = pitz_daily_solved
     loose = Path(shutil.copytree(case, tmp_path / "loose"))  # the criterion 10x looser: it stops early
@@ -391,6 +398,7 @@ def test_the_controlled_run_starts_from_the_check_build(tmp_path: Path) -> None:
         env.close()
 
 
+@pytest.mark.slow  # a whole solve and its rerun
 def test_a_bad_controller_is_rescued_by_the_case_own_settings(tmp_path: Path) -> None:
     case = _coarse_step(tmp_path / "step")
 
@@ -438,6 +446,7 @@ def test_solve_a_coarse_step_case_with_a_loaded_policy(tmp_path: Path) -> None:
     _check_normal_case(out, data["result"]["time_directory"])
 
 
+@pytest.mark.slow  # a whole solve
 def test_a_stalling_controller_hands_the_live_run_to_the_case_own_factors(tmp_path: Path) -> None:
     case = _coarse_step(tmp_path / "step")
     out = tmp_path / "out"
@@ -450,6 +459,7 @@ def test_a_stalling_controller_hands_the_live_run_to_the_case_own_factors(tmp_pa
     assert data["result"]["fields_from"].startswith("the controller, then the case's own factors")
 
 
+@pytest.mark.slow  # a whole solve
 def test_a_plain_simple_case_runs_with_its_own_settings(tmp_path: Path) -> None:
     case = _coarse_step(tmp_path / "step")  # the shipped controller learned SIMPLEC factors
     solution = case / "system" / "fvSolution"
@@ -475,6 +485,7 @@ def _cli(*args: str, cwd: Path) -> subprocess.Popen:
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
+@pytest.mark.slow  # CLI subprocesses that load JAX
 def test_a_case_it_cannot_drive_is_one_line_and_exit_2(tmp_path: Path) -> None:
     case = _coarse_step(tmp_path / "step")
     solution = case / "system" / "fvSolution"
@@ -490,6 +501,7 @@ def test_a_case_it_cannot_drive_is_one_line_and_exit_2(tmp_path: Path) -> None:
     assert process.returncode == 2 and err.count("\n") == 1 and "decomposed" in err
 
 
+@pytest.mark.slow  # slow_case: steps over a minute
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM, signal.SIGKILL])
 def test_a_stopped_solve_leaves_no_solver_within_5_s_mid_step_and_says_so(tmp_path: Path,
                                                                           sig: signal.Signals) -> None:

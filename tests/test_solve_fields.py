@@ -101,6 +101,7 @@ def closed_loop():
 T3A_CRITERION = {"p": 1e-5, "U": 1e-6, "omega": 1e-4, "k": 1e-4, "ReThetat": 1e-4, "gammaInt": 1e-4}
 
 
+@pytest.mark.slow  # whole tutorial solves (T3A: minutes)
 @needs_openfoam
 @pytest.mark.parametrize(("tutorial", "budget", "expected"), [
     ("pitzDaily", 200, {"U": "U", "k": "k", "omega": "epsilon", "p": "p"}),
@@ -153,6 +154,7 @@ def _spalart_allmaras(case: Path) -> Path:
     return case
 
 
+@pytest.mark.slow  # closed_loop and a whole solve
 @needs_openfoam
 def test_a_case_without_the_observed_roles_runs_with_its_own_settings(tmp_path, closed_loop):
     if not (TUTORIALS / "pitzDaily").is_dir():

@@ -139,6 +139,7 @@ def uninterrupted(tmp_path_factory) -> Path:
     return run
 
 
+@pytest.mark.slow  # uninterrupted: a real train-foam run; SIGKILL and resume
 @needs_openfoam
 def test_sigkill_then_resume_leaves_no_solver_and_no_duplicate(tmp_path, uninterrupted):
     run, tmp = tmp_path / "run", tmp_path / "tmp"
@@ -219,6 +220,7 @@ def test_episodes_csv_of_an_older_version_loads_without_the_cost_columns(tmp_pat
     assert "linear_iterations,solver_time_s" in old.read_text().splitlines()[0]
 
 
+@pytest.mark.slow  # uninterrupted: a real train-foam run
 @needs_openfoam
 def test_init_from_starts_with_the_other_runs_network_and_refuses_a_mismatch(capsys, tmp_path, uninterrupted):
     from jaxsimrl.introspect import load_policy

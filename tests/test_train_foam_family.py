@@ -82,6 +82,7 @@ def family_run(tmp_path_factory) -> Path:
     return run
 
 
+@pytest.mark.slow  # family_run: a real train-foam run
 @needs_openfoam
 def test_train_foam_with_all_three_features(family_run):
     foam = json.loads((family_run / "config.json").read_text())["foam"]
@@ -96,6 +97,7 @@ def test_train_foam_with_all_three_features(family_run):
     assert header.endswith(",step_height")
 
 
+@pytest.mark.slow  # family_run: a real train-foam run
 @needs_openfoam
 def test_init_from_refuses_a_policy_with_another_number_of_factors(family_run, tmp_path, capsys):
     # 1 + 2 x 4 residual features: the family run's observation size (9), with 2 factors instead of 3
@@ -104,6 +106,7 @@ def test_init_from_refuses_a_policy_with_another_number_of_factors(family_run, t
     assert code == 2 and "acts in the box" in err and not (tmp_path / "two").exists()
 
 
+@pytest.mark.slow  # family_run, a grid and an eval-foam run
 @needs_openfoam
 def test_grid_foam_3d_and_eval_foam_of_a_3_action_policy(family_run, tmp_path, capsys):
     grid = tmp_path / "grid"

@@ -159,6 +159,7 @@ def source_run(tmp_path_factory) -> Path:
     return run
 
 
+@pytest.mark.slow  # source_run: a real train-foam run
 @needs_openfoam
 def test_a_run_killed_before_its_first_checkpoint_resumes_from_scratch(capsys, tmp_path, source_run):
     run = tmp_path / "killed"
@@ -184,6 +185,7 @@ def test_a_run_killed_before_its_first_checkpoint_resumes_from_scratch(capsys, t
     assert [(r["env"], r["iterations"]) for r in rows] == [(r["env"], r["iterations"]) for r in source]
 
 
+@pytest.mark.slow  # source_run: a real train-foam run
 @needs_openfoam
 def test_init_from_carries_the_sources_input_handling_and_action_mapping(capsys, tmp_path, source_run):
     printed = printed_config(capsys, *TINY, "--init-from", str(source_run))
@@ -320,6 +322,7 @@ def _stop(process: subprocess.Popen, sig: signal.Signals) -> None:
         process.send_signal(sig)
 
 
+@pytest.mark.slow  # a real train-foam run stopped and resumed
 @needs_openfoam
 def test_ctrl_c_stops_now_and_the_run_resumes_from_its_last_checkpoint(tmp_path):
     from foam_bridge.backends.reaper import processes_under
@@ -346,6 +349,7 @@ def test_ctrl_c_stops_now_and_the_run_resumes_from_its_last_checkpoint(tmp_path)
     assert main(["train-foam", "--resume", str(run), "--print-config"]) == 0  # resumable
 
 
+@pytest.mark.slow  # slow_case: steps over a minute
 @needs_openfoam
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM, signal.SIGKILL])
 def test_a_stopped_train_foam_leaves_no_solver_within_5_s_mid_step(tmp_path, sig):

@@ -36,6 +36,7 @@ PINNED = {
 }
 
 
+@pytest.mark.slow  # trains twice
 @pytest.mark.parametrize("network", ["lstm", "mlp"])
 def test_lorenz_through_the_vec_env_learns_what_it_learned_before(network):
     config = PPOConfig(**{**REGRESSION.to_dict(), "network": network})
@@ -139,6 +140,7 @@ class NonTransitionBatch(CountdownBatch):
         return obs, reward, terminated, truncated, infos
 
 
+@pytest.mark.slow  # compiles a trainer
 def test_a_non_transition_is_no_episode_in_the_update_s_statistics():
     ended: list[tuple[int, str]] = []
     vec = HostVecEnv(NonTransitionBatch(3), on_episode=lambda i, info: ended.append((i, info["outcome"])))
@@ -152,6 +154,7 @@ def test_a_non_transition_is_no_episode_in_the_update_s_statistics():
     assert float(metrics["mean_episode_return"][0]) == pytest.approx(-3.0)
 
 
+@pytest.mark.slow  # compiles a trainer
 def test_a_host_failure_is_raised_after_the_call_not_inside_it():
     batch = CountdownBatch(3, explode_at=2)
     vec = HostVecEnv(batch)
@@ -163,6 +166,7 @@ def test_a_host_failure_is_raised_after_the_call_not_inside_it():
     assert "\n" not in str(caught.value)
 
 
+@pytest.mark.slow  # a quadrature over many samples
 def test_squashed_entropy_matches_quadrature_and_stays_bounded():
     low, high = jnp.array([0.2, -3.0]), jnp.array([0.95, 1.0])
     mean, log_std = jnp.array([0.3, -1.0]), jnp.array([-0.5, 0.0])
