@@ -578,6 +578,7 @@ def test_the_reference_key_follows_the_case_files_and_not_where_they_run(tmp_pat
 
 
 @needs_openfoam
+@pytest.mark.slow  # three eval-foam runs and one FoamCaseEnv run (~1 min)
 def test_the_no_training_rules_run_in_the_protocol_at_their_own_step_length(saved_run, tmp_path):
     """``--controllers residual_rule bandit``: solve's rules, from the tutorial's defaults in the training
     box, each stepping at its own interval; the residual rule's run is the episode FoamCaseEnv gives when

@@ -92,9 +92,13 @@ def test_a_rule_is_named_and_keeps_the_watchdog_stall_window_in_iterations():
     assert bandit.provenance()["arms"] == 3 and "raise_share" in rule.provenance()
 
 
+_SLOW = pytest.mark.slow  # a real solve of the coarse step (20-40 s); one combination stays in the quick tier
+
+
 @needs_openfoam
-@pytest.mark.parametrize("name", ["residual-rule", "bandit"])
-@pytest.mark.parametrize("variant", ["SIMPLEC", "SIMPLE"])
+@pytest.mark.parametrize(("name", "variant"), [
+    ("residual-rule", "SIMPLEC"), pytest.param("residual-rule", "SIMPLE", marks=_SLOW),
+    pytest.param("bandit", "SIMPLEC", marks=_SLOW), pytest.param("bandit", "SIMPLE", marks=_SLOW)])
 def test_a_rule_converges_a_coarse_case_inside_its_box(tmp_path: Path, name: str, variant: str) -> None:
     case = _coarse_step(tmp_path / "step")
     if variant == "SIMPLE":  # the case's own factors (U 0.9, p 0.8) are too high for plain SIMPLE
@@ -127,6 +131,7 @@ def test_a_rule_converges_a_coarse_case_inside_its_box(tmp_path: Path, name: str
 
 
 @needs_openfoam
+@pytest.mark.slow  # a crash, then the case's own run of the coarse step (~40 s each)
 @pytest.mark.parametrize("name", ["residual-rule", "bandit"])
 def test_a_rule_that_crashes_the_solver_is_rescued_by_the_case_own_run(tmp_path: Path, name: str) -> None:
     """Plain SIMPLE forced to a box at 0.95 and above (experiments' action_box): the rule's first factors
