@@ -7,6 +7,8 @@ import json
 import math
 import random
 import re
+import time
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -92,6 +94,22 @@ def test_a_rule_is_named_and_keeps_the_watchdog_stall_window_in_iterations():
     assert bandit.provenance()["arms"] == 3 and "raise_share" in rule.provenance()
 
 
+def _watching_the_plot(out: Path, lines: list[str]) -> Callable[[str], None]:
+    """A ``say`` that, at the second step's line, waits (the solver paused) for the live solve.png that
+    the first step's end asked for, while solve.json still says the solve is in progress."""
+    def say(line: str) -> None:
+        lines.append(line)
+        if sum(bool(re.match(r"\s+\d+ it  factors", text)) for text in lines) != 2:
+            return
+        deadline = time.monotonic() + 30.0
+        while not (out / "solve.png").is_file() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        if (out / "solve.png").read_bytes()[:4] == b"\x89PNG" and \
+                json.loads((out / "solve.json").read_text())["status"] == "incomplete":
+            lines.append("solve.png drawn while solving")
+    return say
+
+
 _SLOW = pytest.mark.slow  # a real solve of the coarse step (20-40 s); one combination stays in the quick tier
 
 
@@ -109,9 +127,11 @@ def test_a_rule_converges_a_coarse_case_inside_its_box(tmp_path: Path, name: str
         solution.write_text(text.replace("p               5e-2;", "p               0.3;")
                             .replace("U               1e-3;", "U               1e-2;"))
     lines: list[str] = []
-    report = solve_case(case, tmp_path / "out", rule=name, step_timeout_s=120, say=lines.append)
+    report = solve_case(case, tmp_path / "out", rule=name, step_timeout_s=120,
+                        say=_watching_the_plot(tmp_path / "out", lines))
     data = json.loads((tmp_path / "out" / "solve.json").read_text())
     assert report.converged and data["result"]["fields_from"] == "the controller"
+    assert "solve.png drawn while solving" in lines  # solve.png is there before the run ends
     # every step's line shows the criterion's residuals where the run stands (a user watches it converge)
     step_lines = [line for line in lines if re.match(r"\s+\d+ it  factors", line)]
     assert len(step_lines) == len(data["steps"])

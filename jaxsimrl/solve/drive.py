@@ -62,12 +62,14 @@ def _residual_text(residuals: Mapping[str, float], criterion: Mapping[str, float
 
 def drive(cfg: FoamEnvConfig, actor: Callable[[float], Actor], fallback: list[float],
           watchdog: WatchdogSettings, say: Callable[[str], None],
-          make_env: Callable[[Any, Path, int], Any] | None = None) -> ControlledRun:
+          make_env: Callable[[Any, Path, int], Any] | None = None,
+          on_step: Callable[[ControlledRun], None] | None = None) -> ControlledRun:
     """Run one episode of ``cfg`` with the actor ``actor(inlet_speed)`` returns (asked for once the worker
     has built the case, so that loading a policy overlaps that), switching to ``fallback`` when the
     watchdog fires. Bad input (the env rejects the case): one-line ValueError. ``cfg``'s case must have
     been checked already (jaxsimrl.solve.settings.solve_config does); ``make_env`` builds the worker's env
-    (jaxsimrl.solve.settings.CheckedCase: from that check's build)."""
+    (jaxsimrl.solve.settings.CheckedCase: from that check's build); ``on_step(run)`` after every step
+    (jaxsimrl.solve.live redraws solve.png)."""
     from foam_bridge.backends import BAD_INPUT_ERRORS, Request
     from foam_bridge.backends.local import LocalBackend
 
@@ -81,7 +83,7 @@ def drive(cfg: FoamEnvConfig, actor: Callable[[float], Actor], fallback: list[fl
         obs, info = reply.value
         run.inlet_speed = float(info.get("inlet_velocity", float("nan")))
         _loop(backend, Request, actor(run.inlet_speed), fallback, obs,
-              Watchdog(dict(cfg.convergence), watchdog), run, say)
+              Watchdog(dict(cfg.convergence), watchdog), run, say, on_step or (lambda run: None))
     finally:
         backend.close()
     run.wall_time_s = time.monotonic() - started
@@ -89,7 +91,7 @@ def drive(cfg: FoamEnvConfig, actor: Callable[[float], Actor], fallback: list[fl
 
 
 def _loop(backend: Any, request: Any, actor: Actor, fallback: list[float], obs: Any, dog: Watchdog,
-          run: ControlledRun, say: Callable[[str], None]) -> None:
+          run: ControlledRun, say: Callable[[str], None], on_step: Callable[[ControlledRun], None]) -> None:
     residuals = None
     while True:
         if dog.fired is None:
@@ -109,6 +111,7 @@ def _loop(backend: Any, request: Any, actor: Actor, fallback: list[float], obs: 
                           "outcome": run.outcome})
         say(f"  {run.iterations:5d} it  factors {', '.join(f'{a:.3f}' for a in action)}  ({source})  "
             f"{_residual_text(residuals, dog.criterion)}")
+        on_step(run)
         if terminated or truncated:
             run.record = dict(info.get("episode") or {})
             return

@@ -36,6 +36,7 @@ from jaxsimrl.solve.criterion import (
 )
 from jaxsimrl.solve.drive import ControlledRun, LearnedActor, drive
 from jaxsimrl.solve.fields import observed_mapping
+from jaxsimrl.solve.live import LivePlot
 from jaxsimrl.solve.own import OwnProcess, OwnRun
 from jaxsimrl.solve.report import SolveReport, build_report, preload_plotting, write_report, write_status
 from jaxsimrl.solve.rules import RulePolicy
@@ -162,13 +163,17 @@ def _solve(case: Path, out: Path, policy: Any, compare: bool, constant: Sequence
         f"{cfg.action_low}-{cfg.action_high}, {started_from}, budget {budget} iterations"
         + (f", observes {observed}" if observed else ""))
     controller = policy if loading is None else loading
-    run = _controlled(cfg, trained, settings, controller, watchdog, say, checked)
+    episode = out / WORK_DIR / "env_0" / "episode"
+    live = LivePlot(out, case, reported(cfg.convergence), list(cfg.convergence), episode / "log.simpleFoam")
+    try:
+        run = _controlled(cfg, trained, settings, controller, watchdog, say, checked, live.update)
+    finally:
+        live.close()
     controller = controller if loading is None else loading.result()
     phases["controlled_run_s"], mark = time.monotonic() - mark, time.monotonic()
     rescue = None
     if run.outcome == "not run" or run.outcome in FAILURES:  # a run that reached the budget keeps its fields
         rescue = _own_rescue(case, out, comparisons, run, own, say)
-    episode = out / WORK_DIR / "env_0" / "episode"
     time_name = export_case(Path(rescue.case) if rescue is not None else episode, case, out, start_time=start)
     if own.criterion is not None:  # a plain simpleFoam restart of out stops where this solve did
         write_criterion(out, own.criterion)
@@ -197,7 +202,8 @@ def _solve(case: Path, out: Path, policy: Any, compare: bool, constant: Sequence
 
 
 def _controlled(cfg: Any, trained: Any, settings: Any, controller: Any, watchdog: WatchdogSettings,
-                say: Callable[[str], None], checked: CheckedCase) -> ControlledRun:
+                say: Callable[[str], None], checked: CheckedCase,
+                on_step: Callable[[ControlledRun], None]) -> ControlledRun:
     """The controlled run, or none (outcome "not run") when the controller does not apply to the case.
     ``controller``: a Controller, or its BackgroundLoad (waited for once the worker has built the case)."""
     fallback = own_action(settings, cfg, len(cfg.action_low))
@@ -205,7 +211,7 @@ def _controlled(cfg: Any, trained: Any, settings: Any, controller: Any, watchdog
     if isinstance(rule, RulePolicy):  # a rule reads residuals only: it applies to any case
         made = rule.for_case(dict(cfg.convergence), fallback, cfg.action_low, cfg.action_high,
                              settings.variant == "SIMPLEC")
-        return drive(cfg, lambda speed: made, fallback, rule.watchdog(watchdog), say, checked)
+        return drive(cfg, lambda speed: made, fallback, rule.watchdog(watchdog), say, checked, on_step)
     skip = not_applicable(trained, settings, checked.info.solved_fields)
     if skip is not None:
         say(skip)
@@ -215,7 +221,7 @@ def _controlled(cfg: Any, trained: Any, settings: Any, controller: Any, watchdog
         loaded = controller if isinstance(controller, Controller) else controller.result()
         return LearnedActor(loaded.policy, observation_factor(trained, speed))
 
-    return drive(cfg, actor, fallback, watchdog, say, checked)
+    return drive(cfg, actor, fallback, watchdog, say, checked, on_step)
 
 
 def rule_controller(name: str) -> Controller:
