@@ -195,8 +195,9 @@ def run_campaign(jobs: Sequence[CaseJob], out: str | Path, pool: int, options: M
     compare = bool(options.get("compare"))
     rows = {index: row for index, row in enumerate(map(finished, jobs)) if row is not None}
     pending = deque(index for index in range(len(jobs)) if index not in rows)
-    if rows:
+    if rows:  # a resumed campaign: its table holds the kept cases from the start
         _write(out, jobs, rows, compare)
+        say(f"{len(rows)} of {len(jobs)} cases finished before: kept; solving the other {len(pending)}")
     if not pending:
         return [rows[index] for index in sorted(rows)]
     slots = min(pool, len(pending))
