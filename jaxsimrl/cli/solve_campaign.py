@@ -40,10 +40,16 @@ def add_campaign_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def is_campaign(args: argparse.Namespace) -> bool:
-    """Whether the command line asks for a campaign rather than one solve."""
-    single = len(args.case) == 1 and (Path(args.case[0]) / "system" / "controlDict").is_file()
-    flags = (args.pool, args.backend, args.ray_address)
-    return not single or any(flag is not None for flag in flags) or args.resume
+    """Whether the command line asks for a campaign rather than one solve: several CASEs, a campaign flag,
+    or one directory that is no case but holds some. Anything else is today's single solve, its errors
+    included (a missing or broken CASE)."""
+    from jaxsimrl.solve.campaign import is_case
+
+    if len(args.case) > 1 or args.resume or any(flag is not None for flag in
+                                                 (args.pool, args.backend, args.ray_address)):
+        return True
+    path = Path(args.case[0])
+    return path.is_dir() and not is_case(path) and any(is_case(inner) for inner in path.iterdir())
 
 
 def run_campaign_command(args: argparse.Namespace, options: dict[str, Any]) -> int:
