@@ -25,8 +25,10 @@ from slow_case import STOP_LIMIT_S, iterations_in, seconds_until, wait_until
 from test_solve import _coarse_step
 
 from foam_bridge import case as foam_case
+from foam_bridge.backends import Request
+from foam_bridge.backends.base import _batch_deadline_s, start_deadline_s
 from foam_bridge.backends.reaper import processes_under
-from jaxsimrl.solve.campaign import find_cases, plan_campaign
+from jaxsimrl.solve.campaign import CASE_TIMEOUT_S, CampaignSettings, find_cases, plan_campaign
 from jaxsimrl.solve.campaign_table import FAILED, failed_row, finished_line, row_of, write_plot, write_table
 
 FOAM_ENV = {**os.environ, "WM_PROJECT_DIR": os.environ.get("WM_PROJECT_DIR", "/usr/share/openfoam")}
@@ -68,6 +70,12 @@ def test_output_names_are_unique_and_a_resume_keeps_them(tmp_path: Path) -> None
         plan_campaign([first], tmp_path / "other", resume=True)
     with pytest.raises(ValueError, match="contain each other"):
         plan_campaign([first], first / "out")
+
+
+def test_a_solve_on_the_pool_has_the_case_deadline_and_a_worker_start_the_step_watchdog() -> None:
+    settings = CampaignSettings(step_timeout_s=300.0)  # a whole solve is one request: not 2 steps' time
+    assert _batch_deadline_s(settings, [Request(0, "reset", {})]) == CASE_TIMEOUT_S
+    assert start_deadline_s(settings) == 300.0
 
 
 def _report(converged: bool, own: int | None = None) -> dict:
