@@ -72,7 +72,13 @@ def validate_pool(num_envs: int, pool: int | None = None) -> int:
 
 
 def _batch_deadline_s(cfg: Any, requests: list[Request]) -> float:
-    """Last-resort deadline for one worker's batch: the env's watchdog normally fires long before."""
+    """Last-resort deadline for one worker's batch: the env's watchdog normally fires long before. A
+    ``cfg`` whose requests are whole jobs of many steps (jaxsimrl solve's campaigns: a request solves a
+    case) gives its own ``request_timeout_s`` per request; ``step_timeout_s`` still bounds a worker's
+    start."""
+    per_request = getattr(cfg, "request_timeout_s", None)
+    if per_request is not None:
+        return float(per_request) * len(requests)
     step_s = float(getattr(cfg, "step_timeout_s", 120.0))
     return sum(2 * step_s + (RESET_ALLOWANCE_S if r.method == "reset" else 30.0) for r in requests)
 

@@ -10,13 +10,16 @@ LOG_WIDTH = 120
 
 
 class RunProgress:
-    """``with RunProgress("grid-foam") as progress: progress.step(text, done, total)``."""
+    """``with RunProgress("grid-foam") as progress: progress.step(text, done, total)``. ``stderr``: write
+    there (stdout free for the command's result); ``every_line``: on a terminal too, each run's line stays
+    above the bar (solve campaigns: a user reads back which case ended how)."""
 
-    def __init__(self, label: str) -> None:
+    def __init__(self, label: str, stderr: bool = False, every_line: bool = False) -> None:
         from rich.console import Console
 
         self.label = label
-        self.console = Console(highlight=False)
+        self.every_line = every_line
+        self.console = Console(highlight=False, stderr=stderr)
         if not self.console.is_terminal:
             self.console.width = LOG_WIDTH
         self._progress: Any = None
@@ -41,8 +44,9 @@ class RunProgress:
 
     def step(self, text: str, done: int, total: int) -> None:
         """Run ``done`` of ``total`` finished; ``text`` says which and how it ended."""
-        if self._progress is None:
+        if self._progress is None or self.every_line:
             self.say(f"[{done}/{total}] {text}")
+        if self._progress is None:
             return
         if self._task is None:
             self._task = self._progress.add_task("", total=total)

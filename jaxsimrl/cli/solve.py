@@ -21,6 +21,7 @@ from jaxsimrl.cli.errors import fail, positive_float, positive_int
 def register(subparsers: Any) -> None:
     """Add the ``solve`` subcommand."""
     from jaxsimrl.cli.foam import check_factor, relaxation_factor
+    from jaxsimrl.cli.solve_campaign import add_campaign_arguments
 
     parser = subparsers.add_parser(
         "solve", help="converge an OpenFOAM simpleFoam case with a trained controller",
@@ -29,8 +30,9 @@ def register(subparsers: Any) -> None:
         "a watchdog hands a stalling or growing run to the case's own factors, and a failed run is replaced "
         "by the case's own run. Convergence is the case's residualControl (or --residual), confirmed at a "
         "fixed relaxation, or the case's own function objects ending the run (runTimeControl).")
-    parser.add_argument("case", metavar="CASE", type=Path,
-                        help="a simpleFoam case directory (never modified)")
+    parser.add_argument("case", metavar="CASE", type=Path, nargs="+",
+                        help="a simpleFoam case directory (never modified); several, or a directory holding "
+                        "cases: a campaign (below)")
     parser.add_argument("--out", type=Path, metavar="DIR", help="output directory, new or empty "
                         "(default: ./NAME.solved, NAME the case directory's name)")
     parser.add_argument("--policy", metavar="RUN_DIR", help="a train-foam run directory (default: the "
@@ -64,6 +66,7 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--inlet-patch", default="inlet", metavar="NAME",
                         help="the patch whose mean |U|^2 the controller observes (default: inlet)")
     parser.add_argument("--quiet", action="store_true", help="print only the summary")
+    add_campaign_arguments(parser)
     parser.set_defaults(func=run_solve)
 
 
@@ -105,25 +108,32 @@ def compilation_cache() -> None:
     os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0")  # default 1 s: ours are less
 
 
+def solve_options(args: argparse.Namespace) -> dict[str, Any]:
+    """solve_case's keyword arguments from the command line (but the case, out and say)."""
+    return {"policy": args.policy, "compare": args.compare, "compare_constant": args.compare_constant,
+            "max_iterations": args.max_iterations, "confirm_alpha_u": args.confirm_alpha_u or "own",
+            "step_timeout_s": args.step_timeout, "inlet_patch": args.inlet_patch, "residual": args.residual,
+            "from_time": args.from_time, "rule": None if args.controller == "learned" else args.controller}
+
+
 def run_solve(args: argparse.Namespace) -> int:
-    """Run solve_case and print its summary."""
+    """Run solve_case and print its summary (a campaign: jaxsimrl.cli.solve_campaign)."""
     from foam_bridge.errors import CaseError, OpenFOAMNotFoundError
+    from jaxsimrl.cli.solve_campaign import is_campaign, run_campaign_command
     from jaxsimrl.solve import solve_case
 
     if args.policy is not None and args.controller != "learned":
         fail(f"--policy is a learned controller; --controller {args.controller} needs no policy")
     if args.compare_constant is not None and len(args.compare_constant) not in (2, 3):
         fail(f"--compare-constant takes 2 or 3 factors (U P [TURBULENCE]), got {len(args.compare_constant)}")
+    compilation_cache()
+    if is_campaign(args):
+        return run_campaign_command(args, solve_options(args))
+    (args.case,) = args.case
     out = args.out if args.out is not None else Path.cwd() / f"{Path(args.case).resolve().name}.solved"
     say = (lambda text: None) if args.quiet else (lambda text: print(text, flush=True))
-    compilation_cache()
     try:
-        report = solve_case(args.case, out, policy=args.policy, compare=args.compare,
-                            compare_constant=args.compare_constant, max_iterations=args.max_iterations,
-                            confirm_alpha_u=args.confirm_alpha_u or "own", step_timeout_s=args.step_timeout,
-                            inlet_patch=args.inlet_patch, say=say, residual=args.residual,
-                            from_time=args.from_time,
-                            rule=None if args.controller == "learned" else args.controller)
+        report = solve_case(args.case, out, say=say, **solve_options(args))
     except (ValueError, CaseError, OpenFOAMNotFoundError) as err:
         fail(" ".join(str(err).split()))
     print(report.summary())
