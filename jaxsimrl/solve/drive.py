@@ -68,8 +68,9 @@ def drive(cfg: FoamEnvConfig, actor: Callable[[float], Actor], fallback: list[fl
     has built the case, so that loading a policy overlaps that), switching to ``fallback`` when the
     watchdog fires. Bad input (the env rejects the case): one-line ValueError. ``cfg``'s case must have
     been checked already (jaxsimrl.solve.settings.solve_config does); ``make_env`` builds the worker's env
-    (jaxsimrl.solve.settings.CheckedCase: from that check's build); ``on_step(run)`` after every step
-    (jaxsimrl.solve.live redraws solve.png)."""
+    (jaxsimrl.solve.settings.CheckedCase: from that check's build); ``on_step(run)`` after every step but
+    the episode's last (jaxsimrl.solve.live redraws solve.png; the final report draws the last, and a
+    drawing of it here would only delay the report by ~0.4 s)."""
     from foam_bridge.backends import BAD_INPUT_ERRORS, Request
     from foam_bridge.backends.local import LocalBackend
 
@@ -111,10 +112,10 @@ def _loop(backend: Any, request: Any, actor: Actor, fallback: list[float], obs: 
                           "outcome": run.outcome})
         say(f"  {run.iterations:5d} it  factors {', '.join(f'{a:.3f}' for a in action)}  ({source})  "
             f"{_residual_text(residuals, dog.criterion)}")
-        on_step(run)
         if terminated or truncated:
             run.record = dict(info.get("episode") or {})
             return
+        on_step(run)  # not after the last step: the caller's report follows at once
         reason = dog.check(residuals)
         if reason:
             run.events.append({"kind": "watchdog", "at_iteration": run.iterations, "reason": reason,
