@@ -1,5 +1,3 @@
-import sys
+from jaxsimrl.cli.main import entry
 
-from jaxsimrl.cli.main import main
-
-sys.exit(main())
+entry()

@@ -180,6 +180,9 @@ def test_a_case_without_residual_control_is_solved_with_residual(tmp_path: Path)
                    "--compare", cwd=tmp_path)
     printed, err = process.communicate(timeout=600)
     assert process.returncode == 0, err
+    # the CLI ends without the interpreter's teardown (jaxsimrl.cli.main.entry): nothing printed is lost
+    assert printed.splitlines()[-1] == f"wrote {out} (the case, log.simpleFoam, solve.json, solve.png)"
+    assert (out / "solve.png").read_bytes()[:4] == b"\x89PNG"
     criterion = {"p": 1e-2, "U": 1e-3, "k": 1e-3, "epsilon": 1e-3}
     assert f"criterion {criterion} (--residual)" in printed.splitlines()[0]
     data = json.loads((out / "solve.json").read_text())

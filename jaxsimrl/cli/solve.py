@@ -138,4 +138,5 @@ def run_solve(args: argparse.Namespace) -> int:
         fail(" ".join(str(err).split()))
     print(report.summary())
     print(f"wrote {out} (the case, log.simpleFoam, solve.json, solve.png)")
+    args.skip_teardown = True  # jaxsimrl.cli.main.entry
     return 0 if report.converged else 1
