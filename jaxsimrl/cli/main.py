@@ -8,6 +8,7 @@ so ``jaxsimrl --help`` and flag errors are instant.
 from __future__ import annotations
 
 import argparse
+import atexit
 import importlib
 import os
 import sys
@@ -47,6 +48,9 @@ def entry() -> None:
     on 2 cores: benchmarks/results/solve-wall-2026-12-04)."""
     code, args = _run(None)
     if getattr(args, "skip_teardown", False):
+        # what a normal exit runs before the teardown: multiprocessing's finalizers (else its resource
+        # tracker warns of a leaked semaphore), JAX's and logging's handlers; only the teardown is skipped
+        atexit._run_exitfuncs()
         sys.stdout.flush()
         sys.stderr.flush()
         os._exit(code)
