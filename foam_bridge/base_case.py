@@ -42,7 +42,7 @@ from foam_bridge.logparse import LogParser
 from foam_bridge.openfoam import OpenFOAM
 from foam_bridge.template import TEMPLATE_DIR, copy_case, mesh_parameters, patch_names, run_application
 
-__all__ = ["build_base_case", "check_case", "check_case_files", "check_inlet_settable",
+__all__ = ["build_base_case", "check_case", "check_case_files", "check_inlet_settable", "declared_patches",
            "dry_run", "own_factors"]
 
 
@@ -65,9 +65,10 @@ def build_base_case(cfg: FoamEnvConfig, dest: Path, openfoam: OpenFOAM) -> CaseI
         if not (dest / "constant" / "polyMesh" / "boundary").is_file():
             run_application(openfoam, "blockMesh", dest)
         check_case_files(dest, cfg, need_mesh=True)
-    if cfg.inlet_patch not in patch_names(dest):
+    if cfg.inlet_patch is not None and cfg.inlet_patch not in patch_names(dest):
         raise CaseError(f"case {source}: no patch named {cfg.inlet_patch!r} in the mesh "
-                        f"(patches: {', '.join(patch_names(dest))}); set FoamEnvConfig.inlet_patch")
+                        f"(patches: {', '.join(patch_names(dest))}); name the inlet patch (inlet_patch; "
+                        f"None for a case without one)")
     if cfg.case_dir is None:
         return info
     factors = info.own_factors or (cfg.action_low[0], cfg.action_low[1])
@@ -194,7 +195,8 @@ def _inspect_case(case: Path, cfg: FoamEnvConfig, openfoam: OpenFOAM) -> CaseInf
     foamdict.expand(openfoam, case, f"0/{cfg.pressure_field}")
     velocity = foamdict.expand(openfoam, case, f"0/{cfg.velocity_field}")
     changes_inlet = cfg.velocity_range is not None
-    inlet = _inlet_entry(case, cfg, velocity, f"0/{cfg.velocity_field}", changes_inlet)
+    inlet = {} if cfg.inlet_patch is None else _inlet_entry(case, cfg, velocity, f"0/{cfg.velocity_field}",
+                                                            changes_inlet)
     speed, direction, inlet_state = _inlet_velocity(inlet)
     if changes_inlet:
         _check_turbulence_inlets(case, cfg, openfoam)
@@ -205,6 +207,17 @@ def _inspect_case(case: Path, cfg: FoamEnvConfig, openfoam: OpenFOAM) -> CaseInf
     cells_state = _mean_magnitude_squared(velocity.get("internalField", 0.0))
     return CaseInfo(speed, direction, inlet_state, cells_state, flat, nu,
                     own_factors=own_factors(relaxation, cfg))
+
+
+def declared_patches(case: Path, openfoam: OpenFOAM) -> list[str] | None:
+    """The boundary patches of ``case`` before anything is built: its mesh's, else its blockMeshDict's;
+    None when neither says (a mesh another tool makes)."""
+    if (case / "constant" / "polyMesh" / "boundary").is_file():
+        return patch_names(case)
+    if not _exists(case / "system" / "blockMeshDict"):
+        return None
+    boundary = foamdict.expand(openfoam, case, "system/blockMeshDict").get("boundary", [])
+    return [entry[0] for entry in boundary if isinstance(entry, list | tuple) and entry]
 
 
 def own_factors(relaxation: Any, cfg: FoamEnvConfig) -> tuple[float, float] | None:
@@ -246,7 +259,8 @@ def _inlet_entry(case: Path, cfg: FoamEnvConfig, field: dict[str, Any], relative
         entry = foamdict.lookup(field, f"boundaryField/{cfg.inlet_patch}")
     except KeyError:
         raise CaseError(f"{case / relative}: no boundaryField entry for the inlet patch "
-                        f"{cfg.inlet_patch!r} (set FoamEnvConfig.inlet_patch)") from None
+                        f"{cfg.inlet_patch!r} (name the inlet patch: inlet_patch; None for a case "
+                        f"without one)") from None
     if not isinstance(entry, dict):
         raise CaseError(f"{case / relative}: boundaryField/{cfg.inlet_patch} is not a dictionary")
     if must_be_fixed:

@@ -98,7 +98,9 @@ class FoamEnvConfig:
             ``nu`` read from the case's constant/transportProperties. ``None`` (default): the built-in
             case uses PAPER_INLET_TURBULENCE (and also sets the internal k and omega); a user's case
             keeps its own turbulence boundary conditions.
-        inlet_patch: name of the inlet patch (its U is set and its mean |U|^2 is observed).
+        inlet_patch: name of the inlet patch (its U is set and its mean |U|^2 is observed); None for a
+            case without an inlet (a cavity, a closed mixer): the state is the cells' mean |U|^2 alone and
+            the inlet speed cannot be set.
         velocity_field, pressure_field: names of the fields relaxed by alpha_u and alpha_p.
         turbulence_fields: fields relaxed by ``relax_k_omega``, and set by ``inlet_turbulence``.
         simple_variant: "SIMPLE" (``consistent no``) or "SIMPLEC" (``consistent yes``). ``None``
@@ -195,7 +197,7 @@ class FoamEnvConfig:
     mesh_scale: float = 1.0
     step_height: float | tuple[float, float] = STEP_HEIGHT_H
     inlet_velocity: tuple[float, float] | float | None = None
-    inlet_patch: str = "inlet"
+    inlet_patch: str | None = "inlet"
     velocity_field: str = "U"
     pressure_field: str = "p"
     turbulence_fields: tuple[str, ...] = ("k", "omega")
@@ -245,7 +247,11 @@ class FoamEnvConfig:
                    self.inlet_turbulence, "(intensity > 0, nu_t/nu > 0)")
         for name in ("inlet_patch", "velocity_field", "pressure_field"):
             value = getattr(self, name)
-            _check(isinstance(value, str) and value != "", name, value, "a non-empty name")
+            none_ok = name == "inlet_patch" and value is None  # a case without an inlet
+            _check(isinstance(value, str) and value != "" or none_ok, name, value,
+                   "a non-empty name" + " (or None: the case has no inlet)" * (name == "inlet_patch"))
+        _check(self.inlet_patch is not None or not (self.builtin or self.velocity_range is not None),
+               "inlet_patch", None, "an inlet patch where the inlet speed is set (the built-in case sets it)")
         _check(self.simple_variant is None or self.simple_variant in SIMPLE_VARIANTS, "simple_variant",
                self.simple_variant, f"None or one of {SIMPLE_VARIANTS}")
         _check(_is_int(self.interval) and self.interval >= 1, "interval", self.interval, "an integer >= 1")

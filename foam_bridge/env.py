@@ -443,8 +443,9 @@ class FoamCaseEnv:
             self._features.append(np.asarray(logs))
         parser = self._parser
         # a failed step keeps the last state read (the solver's last one may be a blow-up)
-        if outcome not in FAILURES and parser.inlet_state is not None and parser.cells_state is not None:
-            self._state = (parser.inlet_state + parser.cells_state) / self._scale
+        inlet = parser.inlet_state if self.cfg.inlet_patch is not None else 0.0  # no inlet: the cells alone
+        if outcome not in FAILURES and inlet is not None and parser.cells_state is not None:
+            self._state = (inlet + parser.cells_state) / self._scale
         self._obs = self._observation()
 
     def _observation(self) -> np.ndarray:

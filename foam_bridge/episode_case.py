@@ -320,10 +320,11 @@ def _function_objects(cfg: FoamEnvConfig, case: Path, pause: bool, after: int = 
                               "writeControl": "none"},
         CELLS_FUNCTION: {"type": "volFieldValue", "libs": _FIELD_LIBS, "fields": [STATE_FIELD],
                          "operation": "average", "regionType": "all", **every_iteration},
-        INLET_FUNCTION: {"type": "surfaceFieldValue", "libs": _FIELD_LIBS, "fields": [STATE_FIELD],
-                         "operation": "average", "regionType": "patch", "name": cfg.inlet_patch,
-                         "surfaceFormat": "none", **every_iteration},
     }
+    if cfg.inlet_patch is not None:  # a case without an inlet observes its cells alone
+        functions[INLET_FUNCTION] = {
+            "type": "surfaceFieldValue", "libs": _FIELD_LIBS, "fields": [STATE_FIELD], "operation": "average",
+            "regionType": "patch", "name": cfg.inlet_patch, "surfaceFormat": "none", **every_iteration}
     boundaries = [k for k in pause_boundaries(cfg)[1:] if k > after]
     if pause and boundaries:  # at the solver's times: start_time + K
         copies = [[cfg.start_time + k, f'"$FOAM_CASE/system/{BRIDGE_DIR}/{_fv_solution_copy(case, k).name}"']

@@ -63,8 +63,9 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--step-timeout", type=positive_float, default=300.0, metavar="S",
                         help="watchdog on the solver: seconds one step of 100 iterations may take "
                         "(default 300)")
-    parser.add_argument("--inlet-patch", default="inlet", metavar="NAME",
-                        help="the patch whose mean |U|^2 the controller observes (default: inlet)")
+    parser.add_argument("--inlet-patch", default=None, metavar="NAME",
+                        help="the patch whose mean |U|^2 the controller observes (default: the case's "
+                             "'inlet'; a case without one runs under a rule or its own settings)")
     parser.add_argument("--quiet", action="store_true", help="print only the summary")
     add_campaign_arguments(parser)
     parser.set_defaults(func=run_solve)

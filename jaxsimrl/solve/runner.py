@@ -63,7 +63,7 @@ def solve_case(case: str | Path, out: str | Path, policy: Any = None,
                max_iterations: int | None = None, confirm_alpha_u: float | str | None = OWN_CHECK,
                watchdog: WatchdogSettings | None = None,
                action_box: tuple[Sequence[float], Sequence[float]] | None = None,
-               step_timeout_s: float = 300.0, inlet_patch: str = "inlet",
+               step_timeout_s: float = 300.0, inlet_patch: str | None = None,
                say: Callable[[str], None] | None = None, residual: Residual | str | None = None,
                from_time: float | None = None, rule: str | None = None) -> SolveReport:
     """Run ``case`` with the controller (``policy``: a run directory, a :class:`Controller`, a policy from
@@ -72,7 +72,8 @@ def solve_case(case: str | Path, out: str | Path, policy: Any = None,
     policy): one-line ValueError before any result is claimed. ``confirm_alpha_u``: the convergence
     check's alpha_u (foam_bridge.confirm; "own", the default: the case's own alpha_u, see
     :func:`jaxsimrl.solve.settings.check_factor`; None: no check). ``action_box`` replaces the case's own box
-    (experiments only); ``inlet_patch``: the patch whose mean |U|^2 the controller observes;
+    (experiments only); ``inlet_patch``: the patch whose mean |U|^2 the controller observes (None: the
+    case's ``inlet``, if it has one);
     ``residual``: the convergence criterion instead of the case's residualControl, for every run of the
     solve and written into ``out``'s fvSolution (jaxsimrl.solve.criterion: ``1e-4``, ``{"p": 1e-3}`` or
     ``"p=1e-3,U=1e-4"``); ``from_time``: the case's time directory to start from (default its latest:
@@ -212,7 +213,7 @@ def _controlled(cfg: Any, trained: Any, settings: Any, controller: Any, watchdog
         made = rule.for_case(dict(cfg.convergence), fallback, cfg.action_low, cfg.action_high,
                              settings.variant == "SIMPLEC")
         return drive(cfg, lambda speed: made, fallback, rule.watchdog(watchdog), say, checked, on_step)
-    skip = not_applicable(trained, settings, checked.info.solved_fields)
+    skip = not_applicable(trained, settings, checked.info.solved_fields, cfg.inlet_patch)
     if skip is not None:
         say(skip)
         return ControlledRun(outcome="not run", events=[{"kind": "not applicable", "at_iteration": 0,

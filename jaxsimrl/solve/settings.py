@@ -109,17 +109,26 @@ def _is_true(value: Any) -> bool:
     return value is True or (isinstance(value, str) and value.lower() in ("yes", "on", "true", "y", "t"))
 
 
+#: The inlet patch's name when a solve is given none (OpenFOAM's tutorials name it so).
+DEFAULT_INLET = "inlet"
+
+
 def not_applicable(policy_cfg: FoamEnvConfig, settings: CaseSettings,
-                   solved: Sequence[str] = ()) -> str | None:
+                   solved: Sequence[str] = (), inlet: str | None = DEFAULT_INLET) -> str | None:
     """Why the controller does not apply to the case (None if it does): its factors were learned for one
     pressure-velocity algorithm and mean something else under the other (SIMPLEC tolerates alpha_p ~0.9,
     plain SIMPLE needs ~0.3: foam_bridge.user_case), so a controller trained on SIMPLEC is not used on a
     plain SIMPLE case, nor the reverse; and a controller that observes residuals needs a case field for
-    each field it observes (jaxsimrl.solve.fields; ``solved``: the case's CaseInfo.solved_fields)."""
+    each field it observes (jaxsimrl.solve.fields; ``solved``: the case's CaseInfo.solved_fields); and one
+    that observes the flow state, scaled by the inlet's, needs an inlet (``inlet``: the solve's patch)."""
     trained = policy_cfg.variant if policy_cfg.case_dir is None else policy_cfg.simple_variant
     if trained is not None and trained != settings.variant:
         return (f"the controller was trained on {trained} and the case uses {settings.variant}: its factors "
                 f"do not transfer, so the case runs with its own settings")
+    if inlet is None:
+        return (f"the controller observes the flow relative to the inlet's and the case has no patch named "
+                f"{DEFAULT_INLET!r} (--inlet-patch NAME names its inlet), so the case runs with its own "
+                f"settings")
     return observed_mapping(policy_cfg, solved)[1]
 
 
@@ -154,13 +163,16 @@ def _budget(control: dict[str, Any]) -> int | None:
 
 def solve_config(case: Path, policy_cfg: FoamEnvConfig, work: Path, max_iterations: int,
                  confirm_alpha_u: float | None, action_box: tuple[Sequence[float], Sequence[float]] | None,
-                 step_timeout_s: float, inlet_patch: str = "inlet", residual: Residual | str | None = None,
+                 step_timeout_s: float, inlet_patch: str | None = None,
+                 residual: Residual | str | None = None,
                  start_time: int = 0) -> tuple[FoamEnvConfig, CheckedCase]:
     """The env config of the controlled run (see the module docstring) and the case as its check built
     it (``work/checked`` and its CaseInfo: the controlled run's env starts from it instead of building
     and dry-running the case again); one-line CaseError/ValueError if the bridge cannot drive the case.
     ``residual``: the criterion instead of the case's residualControl (jaxsimrl.solve.criterion);
-    ``start_time``: the case's time directory the run starts from (:func:`start_of`).
+    ``start_time``: the case's time directory the run starts from (:func:`start_of`); ``inlet_patch``: the
+    patch whose flow the controller observes (None: the case's ``inlet`` if it has one, else no inlet,
+    :func:`inlet_of`).
 
     Starting from the check's build is safe: the check builds exactly what the env would (the same
     copy, mesh and dry run, foam_bridge.base_case.check_case), from this config before the case's own
@@ -177,6 +189,7 @@ def solve_config(case: Path, policy_cfg: FoamEnvConfig, work: Path, max_iteratio
     if getattr(policy_cfg, "relax_k_omega", None) == TURBULENCE_ACTION:
         copied["relax_k_omega"] = TURBULENCE_ACTION
     interval = min(copied.get("interval", 100), max_iterations)
+    inlet_patch = inlet_of(case, inlet_patch, find_openfoam(policy_cfg.openfoam_path))
     cfg = FoamEnvConfig(**{**copied, "interval": interval}, case_dir=case, max_iterations=max_iterations,
                         confirm_alpha_u=confirm_alpha_u, work_dir=work, keep_cases=True,
                         step_timeout_s=step_timeout_s, inlet_patch=inlet_patch, start_time=start_time)
@@ -199,6 +212,21 @@ def solve_config(case: Path, policy_cfg: FoamEnvConfig, work: Path, max_iteratio
     if mapping is not None:
         cfg = dataclasses.replace(cfg, observed_fields=tuple(mapping.values())).validate()
     return cfg, checked
+
+
+def inlet_of(case: Path, named: str | None, openfoam: Any) -> str | None:
+    """The inlet patch a solve observes: ``named`` (--inlet-patch), which the case must have; else the
+    case's patch ``inlet``, or None for a case without one (a cavity, a closed mixer: the rules run it, and
+    a controller that observes the inlet's flow does not apply, :func:`not_applicable`)."""
+    from foam_bridge.base_case import declared_patches
+
+    patches = declared_patches(case, openfoam)
+    if named is None:
+        return DEFAULT_INLET if patches is None or DEFAULT_INLET in patches else None
+    if patches is not None and named not in patches:
+        raise ValueError(f"--inlet-patch {named}: case {case} has no patch named {named!r} (its patches: "
+                         f"{', '.join(patches)})")
+    return named
 
 
 def _stopped_by_the_case(cfg: FoamEnvConfig, explicit: list[str], checked: CheckedCase, where: Any
