@@ -221,7 +221,7 @@ class FoamBatchCore(EpisodeReplay):
         """The step result of an episode the env itself could not report: crashed, with the penalty."""
         tally.actions.append([float(a) for a in action])
         rate = cost_per_iteration(self.cfg, -tally.episode_return, tally.iterations)
-        reward = failure_reward(self.cfg, tally.iterations, rate)
+        reward = failure_reward(self.cfg, tally.iterations, rate) * self.cfg.reward_scale
         tally.episode_return += reward
         return tally.obs, reward, True, False, self._failure_info(tally, cause)
 

@@ -163,6 +163,16 @@ class FoamEnvConfig:
             Observation layout: state, residual features, progress, action.
         state_scale: the observed state is (mean_inlet |U|^2 + mean_cells |U|^2) / state_scale
             (default U_REF**2 = 44.2**2, so the state is O(1)).
+        observe_state: False leaves the flow state out of the observation (a controller for many
+            geometries, or a case without an inlet: the state's scale is one flow's).
+        observe_algorithm: one more observation entry after the progress: 1 for SIMPLEC, 0 for plain
+            SIMPLE (``simple_variant`` must then be set), so one controller can act on both.
+        action_share: the action is a share of the box, a in [0, 1] per factor, and the factors are
+            action_low + a (action_high - action_low) (:func:`factors_of`): one controller acts in each
+            case's own box (plain SIMPLE's is the case's own factors' neighbourhood,
+            foam_bridge.user_case), where absolute factors would mean a different thing in each.
+        reward_scale: every step's reward (a failure's too) is multiplied by it; a family of cases that
+            differ tenfold in iterations weighs each alike with 100 / the case's own iterations.
         reward: the cost whose increase is the negative reward of a step, one of REWARDS:
             "iterations" (default, the paper's: SIMPLE iterations K), "linear-iterations" (the inner
             iterations of every linear solve, all fields: what one SIMPLE iteration costs changes with
@@ -211,6 +221,10 @@ class FoamEnvConfig:
     confirm_alpha_u: float | None = None
     residual_features: int = 0
     reward: str = "iterations"
+    observe_state: bool = True
+    observe_algorithm: bool = False
+    action_share: bool = False
+    reward_scale: float = 1.0
     state_scale: float = U_REF**2
     failure_penalty: float | None = None
     divergence_threshold: float = 1e3
@@ -283,6 +297,9 @@ class FoamEnvConfig:
                    and all(isinstance(name, str) and name != "" for name in names), "observed_fields",
                    names, "None or a non-empty tuple of distinct field names")
         _check(self.reward in REWARDS, "reward", self.reward, f"one of {REWARDS}")
+        _check(self.reward_scale > 0 and math.isfinite(self.reward_scale), "reward_scale", self.reward_scale)
+        _check(not self.observe_algorithm or self.variant is not None, "observe_algorithm",
+               self.observe_algorithm, "simple_variant set (the algorithm observed)")
         _check(_is_int(self.start_time) and self.start_time >= 0 and not (self.start_time and self.builtin),
                "start_time", self.start_time, "an integer >= 0 (0 for the built-in case)")
         for name in ("observe_progress", "observe_action", "scale_free_state"):
@@ -369,7 +386,8 @@ class FoamEnvConfig:
     @property
     def observation_size(self) -> int:
         """Length of the observation vector: the state, the residual features, the progress, the action."""
-        return (1 + self.residual_features * len(self.observed) + int(self.observe_progress)
+        return (int(self.observe_state) + self.residual_features * len(self.observed)
+                + int(self.observe_progress) + int(self.observe_algorithm)
                 + self.action_size * int(self.observe_action))
 
     # ---- JSON (the "foam" section of a train-foam run's config.json) ----------------------------------
@@ -378,7 +396,8 @@ class FoamEnvConfig:
         paths as strings); the inverse of :meth:`from_json`. ``observed_fields`` only when set: a config
         without it writes the JSON it always wrote (config.json, reference cache keys)."""
         return {item.name: _to_json(getattr(self, item.name)) for item in dataclasses.fields(self)
-                if item.name not in _OMITTED_WHEN_NONE or getattr(self, item.name) is not None}
+                if not (item.name in _OMITTED_WHEN_NONE and getattr(self, item.name) is None
+                        or item.name in _OMITTED_AT_DEFAULT and getattr(self, item.name) == item.default)}
 
     @classmethod
     def from_json(cls, data: Any) -> FoamEnvConfig:
@@ -414,6 +433,8 @@ class FoamEnvConfig:
 _JSON_TUPLE_FIELDS = ("action_low", "action_high", "turbulence_fields", "inlet_turbulence", "observed_fields")
 #: Fields to_json leaves out at None (added after runs were written; their JSON stays byte-identical).
 _OMITTED_WHEN_NONE = ("observed_fields",)
+#: Fields to_json leaves out at their default, for the same reason.
+_OMITTED_AT_DEFAULT = ("observe_state", "observe_algorithm", "action_share", "reward_scale")
 
 
 def _to_json(value: Any) -> Any:

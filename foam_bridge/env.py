@@ -100,7 +100,7 @@ EPISODE_DIR = "episode"
 BASE_CACHE = 4
 
 __all__ = ["CASE_STOP", "FAILURES", "OUTCOMES", "FoamCaseEnv", "action_spec", "bounded_observation",
-           "failure_reward", "observation_spec"]
+           "factors_of", "failure_reward", "observation_spec", "shares_of"]
 
 
 class FoamCaseEnv:
@@ -221,7 +221,7 @@ class FoamCaseEnv:
         """Run ``interval`` SIMPLE iterations with the given factors; see the class docstring."""
         if self._done:
             raise RuntimeError("step() on a finished episode: call reset() first")
-        alpha = clip_to_box(_factors(action, self.cfg.action_size), self.cfg.action_low, self.cfg.action_high)
+        alpha = factors_of(self.cfg, _factors(action, self.cfg.action_size))
         self._episode["actions"].append([float(a) for a in alpha])
         self._factors = alpha
         alpha_t = float(alpha[2]) if len(alpha) == 3 else None
@@ -237,9 +237,9 @@ class FoamCaseEnv:
         spent, self._cost = self._cost, self._episode_cost()
         if outcome in FAILURES:
             rate = cost_per_iteration(self.cfg, self._cost, self._parser.completed)
-            reward = failure_reward(self.cfg, previous, rate)
+            reward = failure_reward(self.cfg, previous, rate) * self.cfg.reward_scale
         else:
-            reward = -(self._cost - spent)
+            reward = -(self._cost - spent) * self.cfg.reward_scale
         residuals = self._residuals()
         self._update_observation(outcome, residuals)
         self._episode["return"] += reward
@@ -451,11 +451,14 @@ class FoamCaseEnv:
     def _observation(self) -> np.ndarray:
         """state, residual features, progress, factors in force (FoamEnvConfig's observation layout)."""
         cfg = self.cfg
-        parts = [np.array([self._state]), *(self._features if cfg.residual_features else [])]
+        parts = [np.array([self._state])] if cfg.observe_state else []
+        parts += list(self._features) if cfg.residual_features else []
         if cfg.observe_progress:
             parts.append(np.array([self._iterations / cfg.max_iterations]))
-        if cfg.observe_action:
-            parts.append(np.asarray(self._factors, np.float64))
+        if cfg.observe_algorithm:
+            parts.append(np.array([float(cfg.variant == "SIMPLEC")]))
+        if cfg.observe_action:  # as the policy acts: a share of the box with action_share
+            parts.append(shares_of(cfg, self._factors))
         return bounded_observation(np.concatenate(parts))
 
     def _info(self, outcome: str, cause: str, residuals: dict[str, float]) -> dict[str, Any]:
@@ -499,9 +502,10 @@ def _factors(action: Any, size: int = 2) -> np.ndarray:
 def observation_spec(cfg: FoamEnvConfig) -> BoxSpec:
     """Box of the observation (float32): the scaled state in [0, B], the log10 residual features in
     [-B, B], then the progress and the factors in [0, B], B = OBSERVATION_BOUND."""
-    n = cfg.observation_size
+    n, state = cfg.observation_size, int(cfg.observe_state)
     features = cfg.residual_features * len(cfg.observed)
-    low = np.array([0.0] + [-OBSERVATION_BOUND] * features + [0.0] * (n - 1 - features), dtype=np.float32)
+    low = np.array([0.0] * state + [-OBSERVATION_BOUND] * features + [0.0] * (n - state - features),
+                   dtype=np.float32)
     return BoxSpec(low=low, high=np.full(n, OBSERVATION_BOUND, dtype=np.float32), shape=(n,))
 
 
@@ -540,7 +544,30 @@ def _claim_directory(root: Path) -> BinaryIO:
 
 
 def action_spec(cfg: FoamEnvConfig) -> BoxSpec:
-    """Box of (alpha_u, alpha_p[, alpha_t]): ``[action_low, action_high]`` (float32)."""
+    """Box of (alpha_u, alpha_p[, alpha_t]): ``[action_low, action_high]`` (float32); [0, 1] per factor
+    with ``action_share``."""
+    if cfg.action_share:
+        return BoxSpec(low=np.zeros(cfg.action_size, np.float32), high=np.ones(cfg.action_size, np.float32),
+                       shape=(cfg.action_size,))
     return BoxSpec(low=np.asarray(cfg.action_low, dtype=np.float32),
                    high=np.asarray(cfg.action_high, dtype=np.float32), shape=(cfg.action_size,))
+
+
+def factors_of(cfg: FoamEnvConfig, action: Any) -> np.ndarray:
+    """The factors an action sets, in the box: the action itself, or with ``action_share`` the point
+    that share of the way from action_low to action_high (shares clipped into [0, 1])."""
+    low, high = np.asarray(cfg.action_low, np.float64), np.asarray(cfg.action_high, np.float64)
+    if cfg.action_share:
+        share = np.clip(np.asarray(action, np.float64), 0.0, 1.0)
+        return clip_to_box(low + share * (high - low), low, high)
+    return clip_to_box(action, low, high)
+
+
+def shares_of(cfg: FoamEnvConfig, factors: Any) -> np.ndarray:
+    """The action that sets ``factors`` (the inverse of :func:`factors_of`; a fallback's own factors)."""
+    if not cfg.action_share:
+        return np.asarray(factors, np.float64)
+    low, high = np.asarray(cfg.action_low, np.float64), np.asarray(cfg.action_high, np.float64)
+    span = np.where(high > low, high - low, 1.0)
+    return np.clip((np.asarray(factors, np.float64) - low) / span, 0.0, 1.0)
 

@@ -30,7 +30,7 @@ from typing import Any
 
 COLUMNS = ("index", "env", "update", "seed", "inlet_velocity", "steps", "iterations", "linear_iterations",
            "solver_time_s", "return", "outcome", "cause", "wall_time_s", "solver_idle_s", "actions", "node",
-           "step_height")
+           "step_height", "case")
 #: Float columns; an empty cell reads as NaN.
 _FLOATS = ("inlet_velocity", "linear_iterations", "solver_time_s", "return", "wall_time_s", "solver_idle_s",
            "step_height")
@@ -61,6 +61,7 @@ class EpisodeRecord:
     env_id: int | None = None
     node: str | None = None
     confirmations: list[dict[str, Any]] | None = None
+    case: str | None = None  # which case of a family (foam_bridge.family_env)
 
     @property
     def steps(self) -> int:
@@ -79,7 +80,7 @@ class EpisodeRecord:
             "linear_iterations": float(self.linear_iterations), "solver_time_s": float(self.solver_time_s),
             "wall_time_s": float(self.wall_time_s), "solver_idle_s": float(self.solver_idle_s),
             "residuals": dict(self.residuals)}
-        for name in ("env_id", "node", "confirmations"):
+        for name in ("env_id", "node", "confirmations", "case"):
             if getattr(self, name) is not None:
                 out[name] = getattr(self, name)
         return out
@@ -89,7 +90,7 @@ class EpisodeRecord:
         """The record of an ``info["episode"]`` dict; what it lacks takes the defaults."""
         names = ("outcome", "cause", "iterations", "seed", "inlet_velocity", "step_height",
                  "linear_iterations", "solver_time_s", "wall_time_s", "solver_idle_s", "residuals", "env_id",
-                 "node", "confirmations")
+                 "node", "confirmations", "case")
         values = {name: data[name] for name in names if data.get(name) is not None}
         return cls(**values, actions=[list(a) for a in data.get("actions", [])],
                    episode_return=_number(data.get("return")))
@@ -115,7 +116,7 @@ class EpisodeRecord:
                "solver_time_s": _number(self.solver_time_s), "return": _number(self.episode_return),
                "outcome": str(self.outcome), "cause": str(self.cause),
                "wall_time_s": _number(self.wall_time_s), "solver_idle_s": _number(self.solver_idle_s),
-               "actions": actions, "node": str(self.node or "")}
+               "actions": actions, "node": str(self.node or ""), "case": str(self.case or "")}
         return row if index is None else {"index": int(index), **row}
 
     @classmethod
@@ -125,7 +126,8 @@ class EpisodeRecord:
                    inlet_velocity=row["inlet_velocity"], step_height=row["step_height"],
                    actions=[list(a) for a in row["actions"]], episode_return=row["return"],
                    linear_iterations=row["linear_iterations"], solver_time_s=row["solver_time_s"],
-                   wall_time_s=row["wall_time_s"], solver_idle_s=row["solver_idle_s"], node=row["node"])
+                   wall_time_s=row["wall_time_s"], solver_idle_s=row["solver_idle_s"], node=row["node"],
+                   case=row.get("case") or None)
 
 
 def parse_row(raw: Mapping[str, str]) -> dict[str, Any] | None:
@@ -137,7 +139,8 @@ def parse_row(raw: Mapping[str, str]) -> dict[str, Any] | None:
                                "steps": int(raw["steps"]), "iterations": int(raw["iterations"]),
                                "outcome": raw["outcome"], "cause": raw["cause"],
                                "actions": json.loads(raw["actions"]),
-                               "node": raw.get("node") or ""}  # older files lack it
+                               "node": raw.get("node") or "",  # older files lack it
+                               "case": raw.get("case") or ""}  # and this
         for name in _FLOATS:
             text = raw.get(name, "") if name in _ADDED_LATER else raw[name]
             row[name] = float(text) if text != "" else math.nan  # a short row's None: TypeError, dropped

@@ -35,13 +35,14 @@ def test_committed_runs_read_back_and_each_row_is_one_record():
 CURRENT = (",".join(COLUMNS) + "\n"
            "0,0,1,818220272,51.936893900503904,2,4000,26608.0,32.730000000000004,-4000.0,truncated,,"
            '62.53033826000137,4.373785689991564,"[[0.353728, 0.741917], [0.269199, 0.727407]]",vm,'
-           "0.018564893691955832\n"
-           '1,1,1,,,1,100,,,-4000.0,crashed,worker died,2.5,0.0,"[[0.9, 0.5]]",,\n')
+           "0.018564893691955832,\n"
+           '1,1,1,,,1,100,,,-4000.0,crashed,worker died,2.5,0.0,"[[0.9, 0.5]]",,,pitzDaily-3\n')
 
 
 def test_a_file_of_the_current_columns_is_rewritten_byte_for_byte():
     rows = read_rows(CURRENT)
     assert [r["seed"] for r in rows] == [818220272, None] and math.isnan(rows[1]["step_height"])
+    assert [r["case"] for r in rows] == ["", "pitzDaily-3"]
     assert rows_to_csv(rows) == CURRENT
 
 

@@ -67,15 +67,18 @@ def foam_spec(record: dict[str, Any]) -> EnvSpec:
 
 
 def foam_obs_names(cfg: Any) -> tuple[str, ...]:
-    """"state", then per residual feature block (oldest first) "log10 r_<field>", with "(t-k)" for the
-    block k step boundaries before the latest (foam_bridge keeps the last ``residual_features``)."""
-    names = [FOAM_STATE_NAME]
+    """"state" (unless left out), then per residual feature block (oldest first) "log10 r_<field>", with
+    "(t-k)" for the block k step boundaries before the latest (foam_bridge keeps the last
+    ``residual_features``), then "progress", "SIMPLEC" and the factors in force, where observed."""
+    names = [FOAM_STATE_NAME] if getattr(cfg, "observe_state", True) else []
     blocks = cfg.residual_features
     for block in range(blocks):
         lag = blocks - 1 - block
         names += [f"log10 r_{field}" + (f" (t-{lag})" if lag else "") for field in cfg.observed]
     if cfg.observe_progress:
         names.append("progress")
+    if getattr(cfg, "observe_algorithm", False):
+        names.append("SIMPLEC")
     if cfg.observe_action:
         names += [f"last {name}" for name in ACTION_NAMES[:cfg.action_size]]
     return tuple(names)

@@ -1,0 +1,112 @@
+"""The env options that let one controller act on many cases (foam_bridge.config): an observation without
+the flow state and with the algorithm, actions as shares of each case's own box, a reward scaled per case.
+Logic first, then one real episode of the coarse built-in case."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from foam_marks import needs_openfoam
+
+from foam_bridge.config import FoamEnvConfig
+from foam_bridge.env import FoamCaseEnv, action_spec, factors_of, observation_spec, shares_of
+from foam_bridge.family_env import CaseFamilyEnv
+
+SHARED = dict(observe_state=False, observe_algorithm=True, action_share=True, residual_features=2,
+              observe_progress=True, observe_action=True)
+
+
+def test_shares_map_onto_the_box_and_back() -> None:
+    cfg = FoamEnvConfig(action_low=(0.2, 0.3), action_high=(0.9, 0.5), action_share=True)
+    assert factors_of(cfg, [0.0, 1.0]) == pytest.approx([0.2, 0.5])
+    assert factors_of(cfg, [0.5, 0.25]) == pytest.approx([0.55, 0.35])
+    assert factors_of(cfg, [1.7, -3.0]) == pytest.approx([0.9, 0.3])  # a share outside [0, 1] is clipped
+    assert shares_of(cfg, [0.55, 0.35]) == pytest.approx([0.5, 0.25])
+    assert shares_of(cfg, [1.0, 0.1]) == pytest.approx([1.0, 0.0])  # factors outside the box: its edges
+    spec = action_spec(cfg)
+    assert spec.low.tolist() == [0.0, 0.0] and spec.high.tolist() == [1.0, 1.0]
+    absolute = FoamEnvConfig(action_low=(0.2, 0.3), action_high=(0.9, 0.5))
+    assert factors_of(absolute, [0.55, 0.7]) == pytest.approx([0.55, 0.5])
+    assert action_spec(absolute).low == pytest.approx([0.2, 0.3])
+
+
+def test_the_options_size_the_observation_and_leave_old_configs_json_alone() -> None:
+    plain = FoamEnvConfig(residual_features=2, observe_progress=True, observe_action=True)
+    shared = FoamEnvConfig(simple_variant="SIMPLEC", **SHARED)
+    features = 2 * len(plain.observed)
+    assert plain.observation_size == 1 + features + 1 + 2
+    assert shared.observation_size == features + 1 + 1 + 2  # no state; the algorithm
+    spec = observation_spec(shared)
+    assert spec.shape == (shared.observation_size,) and spec.low[0] < 0  # the first entry is a residual
+    for name in ("observe_state", "observe_algorithm", "action_share", "reward_scale"):
+        assert name not in plain.to_json()  # a run's config.json and cache keys as before
+    assert FoamEnvConfig.from_json(shared.to_json()) == shared
+    with pytest.raises(ValueError, match="reward_scale"):
+        FoamEnvConfig(reward_scale=0.0).validate()
+    with pytest.raises(ValueError, match="observe_algorithm"):
+        FoamEnvConfig(case_dir=Path("c"), observe_algorithm=True).validate()  # the case's own: unknown
+
+
+@needs_openfoam
+def test_an_episode_acts_in_shares_observes_the_algorithm_and_scales_its_reward(tmp_path: Path) -> None:
+    cfg = FoamEnvConfig(mesh_scale=0.4, simple_variant="SIMPLEC", interval=25, max_iterations=1000,
+                        step_timeout_s=60.0, work_dir=tmp_path, reward_scale=0.5, **SHARED)
+    env = FoamCaseEnv(cfg)
+    try:
+        obs, _ = env.reset(seed=0, options={"inlet_velocity": 50.0})
+        features = 2 * len(cfg.observed)
+        assert obs.shape == (cfg.observation_size,)
+        assert obs[features + 1] == 1.0  # SIMPLEC
+        assert obs[-2:] == pytest.approx([0.5, 0.5])  # before any action: the box's centre, as shares
+        obs, reward, terminated, _, info = env.step(np.array([1.0, 0.0]))
+        assert not terminated and info["iterations"] == 25
+        assert reward == pytest.approx(-25 * 0.5)
+        assert obs[-2:] == pytest.approx([1.0, 0.0])
+        assert env._episode["actions"][-1] == pytest.approx([cfg.action_high[0], cfg.action_low[1]])
+        latest = obs[features // 2:features]  # the older block is 0 until a second boundary
+        assert np.all(latest < 0) and np.all(obs[:features // 2] == 0)  # log10 residuals below 1
+    finally:
+        env.close()
+
+
+def _family(tmp_path: Path, **overrides) -> dict[str, FoamEnvConfig]:
+    """The coarse built-in step under both algorithms, acting in shares of one box."""
+    base = dict(mesh_scale=0.4, interval=25, max_iterations=50, step_timeout_s=60.0, inlet_velocity=50.0,
+                **SHARED)
+    return {variant: FoamEnvConfig(**{**base, "simple_variant": variant, **overrides})
+            for variant in ("SIMPLE", "SIMPLEC")}
+
+
+def test_a_family_refuses_cases_of_different_shapes(tmp_path: Path) -> None:
+    cases = _family(tmp_path)
+    cases["SIMPLE"] = FoamEnvConfig(mesh_scale=0.4, simple_variant="SIMPLE")  # a state, no algorithm
+    with pytest.raises(ValueError, match="different sizes"):
+        CaseFamilyEnv(cases, tmp_path)
+    with pytest.raises(ValueError, match="at least one case"):
+        CaseFamilyEnv({}, tmp_path)
+
+
+@needs_openfoam
+def test_a_family_env_draws_its_cases_from_its_seed_and_names_them(tmp_path: Path) -> None:
+    env = CaseFamilyEnv(_family(tmp_path), tmp_path / "work", env_id=3)
+    try:
+        drawn = [env.reset(seed=seed)[1]["case"] for seed in range(6)]
+        assert drawn == [env.reset(seed=seed)[1]["case"] for seed in range(6)]  # the seed decides
+        assert set(drawn) == {"SIMPLE", "SIMPLEC"}
+        features = 2 * len(env.cases["SIMPLE"].observed)
+        for name, flag in (("SIMPLE", 0.0), ("SIMPLEC", 1.0)):
+            obs, info = env.reset(seed=0, options={"case": name})
+            assert info["case"] == name and obs[features + 1] == flag
+            done, info = False, {}
+            while not done:
+                _, _, terminated, truncated, info = env.step(np.array([0.5, 0.5]))
+                done = terminated or truncated
+            assert info["case"] == name and info["episode"]["case"] == name
+            assert info["episode"]["iterations"] == 50  # the budget of this coarse family
+        assert sorted(p.name for p in (tmp_path / "work" / "env_3").iterdir()) == ["case_0", "case_1"]
+        with pytest.raises(ValueError, match="no case 'cavity'"):
+            env.reset(options={"case": "cavity"})
+    finally:
+        env.close()
