@@ -121,8 +121,10 @@ def fresh_plan(args: argparse.Namespace) -> FoamPlan:
         flags["init_action"] = tuple(args.init_action)
     if getattr(args, "async_envs", None) is not None:
         flags["async_envs"] = args.async_envs
+    family = _family(args, extra.get("foam", {}))
     try:
-        foam = _foam_config(args, extra.get("foam", {}))
+        foam = _foam_config(args, extra.get("foam", {})) if not family else \
+            max(family.values(), key=lambda cfg: cfg.max_iterations)  # the shapes; the longest budget
         ppo_values = {**foam_ppo_defaults(num_envs, foam.reward), **extra.get("ppo", {}), **flags}
         ppo_values["steps_per_update"] += -ppo_values["steps_per_update"] % (ppo_values["num_minibatches"]
                                                                              * num_envs)
@@ -148,7 +150,49 @@ def fresh_plan(args: argparse.Namespace) -> FoamPlan:
         init_from = _starting_policy(args.init_from, ppo, foam)
         ppo = _carry_policy_settings(init_from, ppo, given=set(extra.get("ppo", {})) | set(flags))
     return FoamPlan(ppo, foam, episodes, 0 if args.seed is None else args.seed, pool,
-                    args.backend or "local", args.ray_address, out, resume=False, init_from=init_from)
+                    args.backend or "local", args.ray_address, out, resume=False, init_from=init_from,
+                    **_family_setup(family))
+
+
+def _family(args: argparse.Namespace, extra: dict[str, Any]) -> dict[str, Any]:
+    """--family's cases and their configs (jaxsimrl.cli.foam_family), measured now; {} without it."""
+    if not getattr(args, "family", None):
+        return {}
+    from foam_bridge.errors import CaseError, OpenFOAMNotFoundError
+    from jaxsimrl.cli.foam_family import family_case_dirs, family_configs
+
+    given = [f"--{name.replace('_', '-')}" for name in ("case", "mesh_scale", "step_height", "relax_k_omega")
+             if getattr(args, name, None) is not None]
+    if given:
+        raise UsageError(f"{given[0]} does not go with --family (each case keeps its own mesh and settings; "
+                         f"the family acts on U, p and the turbulence)")
+    try:
+        template = _foam_template(args, extra)
+        return family_configs(family_case_dirs(args.family), template,
+                              lambda text: sys.stderr.write(f"jaxsimrl train-foam: {text}\n"))
+    except (CaseError, OpenFOAMNotFoundError, ValueError) as err:
+        raise UsageError(" ".join(str(err).split())) from None
+
+
+def _foam_template(args: argparse.Namespace, extra: dict[str, Any]) -> Any:
+    """A family's shared settings: the defaults, --config's "foam" section, the observation flags."""
+    from foam_bridge.config import FoamEnvConfig
+
+    values = {**FoamEnvConfig().to_json(), **extra, "work_dir": None}
+    flags = {"max_iterations": args.max_iterations, "reward": args.reward,
+             "confirm_alpha_u": args.confirm_alpha_u,
+             **{name: getattr(args, name) for name in OBSERVATION_FLAGS}}
+    values.update({name: value for name, value in flags.items() if value is not None})
+    return FoamEnvConfig.from_json(values)
+
+
+def _family_setup(family: dict[str, Any]) -> dict[str, Any]:
+    """FoamPlan's family fields: the configs, and the factory every worker builds its envs with."""
+    if not family:
+        return {}
+    from foam_bridge.family_env import FamilyFactory
+
+    return {"family": family, "make_env": FamilyFactory(family)}
 
 
 def _pool(ppo: Any, pool: int | None) -> int:
@@ -295,7 +339,8 @@ def resume_plan(args: argparse.Namespace) -> FoamPlan:
     from jaxsimrl.envs.foam_episodes import EPISODES_FILE, EpisodeLog
     from jaxsimrl.runs.run_dir import RunDir
 
-    fixed = ["config", "num_envs", "mesh_scale", "step_height", "max_iterations", "case", "reward", "seed",
+    fixed = ["config", "num_envs", "mesh_scale", "step_height", "max_iterations", "case", "family", "reward",
+             "seed",
              "out", "init_from", "init_action", "confirm_alpha_u", "relax_k_omega", *OBSERVATION_FLAGS]
     changed = [name for name in fixed + [k for k, _, _ in KNOBS] if getattr(args, name) is not None]
     if changed:
@@ -332,8 +377,11 @@ def resume_plan(args: argparse.Namespace) -> FoamPlan:
     if not steps and record.get("init_from"):  # the same starting network as the first time
         source = record["init_from"]
         init_from = _starting_policy(source["run_dir"], ppo, foam, checkpoint=source.get("update"))
+    from jaxsimrl.cli.foam_family import family_from_json
+
     return FoamPlan(ppo, foam, episodes, int(record.get("seed", 0)), pool, backend, args.ray_address,
-                    run.path, resume=True, record=record, init_from=init_from)
+                    run.path, resume=True, record=record, init_from=init_from,
+                    **_family_setup(family_from_json(record)))
 
 
 def _read_config(path: str) -> dict[str, Any]:

@@ -74,6 +74,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     add_confirm_argument(p)
     p.add_argument("--case", metavar="CASE_DIR", help="a simpleFoam case of your own instead of the "
                    "built-in backward-facing step")
+    p.add_argument("--family", nargs="+", metavar="CASE_DIR", help="train one controller on many cases: "
+                   "case directories, or directories of cases (e.g. a family `jaxsimrl family` built); each "
+                   "episode runs one, in its own box, its reward scaled by its own settings' iterations "
+                   "(docs/controller.md)")
     p.add_argument("--backend", choices=("local", "ray"), help="worker pool: local processes (default) or "
                    "Ray actors")
     p.add_argument("--ray-address", help="address of a running Ray cluster (with --backend ray)")

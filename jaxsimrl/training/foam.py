@@ -57,6 +57,8 @@ class FoamPlan:
     init_from: Any = None  # jaxsimrl.introspect.LoadedPolicy whose network the run starts from
     #: What each worker of the batch builds instead of a FoamCaseEnv (tests: foam_bridge.standin).
     make_env: Any = None
+    #: A family of cases (name -> FoamEnvConfig, jaxsimrl.cli.foam_family): each env draws one per episode.
+    family: dict[str, Any] = field(default_factory=dict)
 
 
 def _say(text: str) -> None:
@@ -321,4 +323,6 @@ def _config_record(plan: FoamPlan) -> dict[str, Any]:
         "init_from": {"run_dir": str(plan.init_from.run_dir), "update": plan.init_from.update}}
     return config_record({"env": "foam", "seed": plan.seed}, plan.record if plan.resume else None,
                          {**start, "ppo": plan.ppo.to_dict(), "foam": plan.foam.to_json(),
-                          "episodes_target": plan.episodes, "pool": plan.pool, "backend": plan.backend})
+                          "episodes_target": plan.episodes, "pool": plan.pool, "backend": plan.backend,
+                          **({"family": {n: c.to_json() for n, c in plan.family.items()}} if plan.family
+                             else {})})
