@@ -165,7 +165,7 @@ def _scaled_turbulence(case: Path, flow: Flow, quantity: str, factor: float) -> 
             parts.append(_patch_text(patch, _scaled_entry(entry, lambda v: v * factor), vector=False))
         # other inlet types (turbulentIntensityKineticEnergyInlet, ...) derive their value from U already
     internal = expanded.get("internalField")
-    if not isinstance(internal, str) and np.ndim(internal) == 0 and internal is not None:
+    if internal is not None and not isinstance(internal, str) and np.ndim(internal) == 0:
         parts.append(f"internalField {_field_text(np.asarray(internal, dtype=float) * factor, False)};")
     return parts
 

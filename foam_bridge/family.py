@@ -75,6 +75,7 @@ class Variation:
                     (name == "angle" and value > 90):
                 bound = "in [-90, 90] degrees" if name == "angle" else ">= 0" if name == "initial" else "> 0"
                 raise ValueError(f"variation {name}={value!r}: expected {bound}")
+            object.__setattr__(self, name, float(value))  # the manifest says 2.0 for 2, alike for any input
 
     @property
     def reynolds_ratio(self) -> float:

@@ -12,6 +12,7 @@ to a base, OpenFOAM missing) is one line on stderr and exit code 2.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 from pathlib import Path
 from typing import Any
 
@@ -70,7 +71,7 @@ def run_family(args: argparse.Namespace) -> int:
     def progress(case: Any) -> None:
         nonlocal built
         built += 1
-        changed = ", ".join(f"{key} {value:g}" for key, value in vars(case.variation).items()
+        changed = ", ".join(f"{key} {value:g}" for key, value in dataclasses.asdict(case.variation).items()
                             if value != (0.0 if key == "angle" else 1.0)) or "as the base"
         print(f"[{built}/{total}] built {case.name}: {changed} (Re x {case.reynolds_ratio:.3g}, "
               f"{case.cells} cells)", flush=True)
