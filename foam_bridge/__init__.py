@@ -13,7 +13,8 @@ one case; BatchedFoamEnv: N cases on a process pool or Ray, ``make_backend`` for
 gymnasium envs), a user's case's own MDP (``case_defaults``), the episode pool (``run_episodes``: a
 queue of ``EpisodeJob``s, each with its own reset options and controller, on the local worker pool),
 the constant-factor grid study (``run_grid`` ...), ``export_case`` (an episode's case as a plain
-OpenFOAM case) and the errors.
+OpenFOAM case), case families (``build_family``: N variants of a case, varied in speed, angle,
+viscosity, mesh and initial field, with ``sample_variations``) and the errors.
 Modules whose top says "internal" are the machinery behind these names; their contents may change.
 """
 
@@ -48,6 +49,8 @@ _HOMES: dict[str, tuple[str, ...]] = {
              "write_grid_csv"),
     "episodes": ("EpisodeJob", "EpisodeRun", "run_episodes"),
     "export": ("export_case",),
+    "family": ("FamilyCase", "VARIATION_NAMES", "Variation", "build_family", "read_manifest",
+               "sample_variations"),
     "openfoam": ("find_openfoam",),
     "errors": ("CaseError", "ClusterError", "OpenFOAMNotFoundError", "PoolLostError", "SolverFailure"),
 }
@@ -57,10 +60,12 @@ __all__ = [
     "ACTION_NAMES", "BACKENDS", "BUILTIN_INLET_VELOCITY", "ENV_ID", "FAILURES", "FOLLOW_ALPHA_U",
     "K_OMEGA_ACTION", "MESH_SCALE_USABLE_MIN", "OBSERVATION_BOUND", "OUTCOMES", "PAPER_INLET_TURBULENCE",
     "REWARDS", "SIMPLE_VARIANTS", "STEP_HEIGHT_H", "TEST_CONVERGENCE", "TRAIN_CONVERGENCE", "U_REF",
-    "BatchedFoamEnv", "CaseError", "ClusterError", "EpisodeJob", "EpisodeRun", "FoamCaseEnv", "FoamEnvConfig",
-    "GridCell", "OpenFOAMNotFoundError", "PoolLostError", "RelaxationControlEnv", "RelaxationControlVecEnv",
-    "SolverFailure", "best_cell", "case_defaults", "export_case", "failure_reward", "find_openfoam",
-    "grid_config", "make_backend", "plot_grid", "read_grid_csv", "run_episodes", "run_grid", "write_grid_csv",
+    "VARIATION_NAMES", "BatchedFoamEnv", "CaseError", "ClusterError", "EpisodeJob", "EpisodeRun",
+    "FamilyCase", "FoamCaseEnv", "FoamEnvConfig", "GridCell", "OpenFOAMNotFoundError", "PoolLostError",
+    "RelaxationControlEnv", "RelaxationControlVecEnv", "SolverFailure", "Variation", "best_cell",
+    "build_family", "case_defaults", "export_case", "failure_reward", "find_openfoam", "grid_config",
+    "make_backend", "plot_grid", "read_grid_csv", "read_manifest", "run_episodes", "run_grid",
+    "sample_variations", "write_grid_csv",
 ]
 
 
@@ -108,6 +113,14 @@ if TYPE_CHECKING:  # what type checkers and editors see; at run time __getattr__
         SolverFailure,
     )
     from foam_bridge.export import export_case
+    from foam_bridge.family import (
+        VARIATION_NAMES,
+        FamilyCase,
+        Variation,
+        build_family,
+        read_manifest,
+        sample_variations,
+    )
     from foam_bridge.grid import (
         GridCell,
         best_cell,

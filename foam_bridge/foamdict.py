@@ -26,7 +26,7 @@ from foamlib import FoamFile
 from foam_bridge.errors import CaseError
 from foam_bridge.openfoam import OpenFOAM
 
-__all__ = ["TIMEOUT_S", "expand", "fatal_message", "lookup"]
+__all__ = ["TIMEOUT_S", "expand", "expanded_text", "fatal_message", "lookup"]
 
 #: What OpenFOAM v1912 says when asked to compile a #codeStream/#calc as root.
 _ROOT_REFUSAL = "administrator rights"
@@ -43,6 +43,21 @@ def expand(openfoam: OpenFOAM, case: Path, relative: str, parse: bool = True) ->
     root, ...). ``parse=False`` only checks that OpenFOAM can read it (returns {}): foamlib takes
     seconds over a blockMeshDict's nested lists.
     """
+    text = expanded_text(openfoam, case, relative)
+    if not parse:
+        return {}
+    path = case / relative
+    try:
+        return _plain(FoamFile.loads(text)) if text.strip() else {}
+    except Exception as err:  # noqa: BLE001 - foamlib's own errors carry the position
+        first = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
+        raise CaseError(f"{path}: cannot parse OpenFOAM's expansion of it ({first})") from None
+
+
+def expanded_text(openfoam: OpenFOAM, case: Path, relative: str) -> str:
+    """The text of ``case/relative`` as ``foamDictionary -expand`` prints it (from its FoamFile header
+    on): every top-level entry on one line, directives executed, variables substituted. Same one-line
+    CaseErrors as :func:`expand`."""
     path = case / relative
     if not path.is_file() and not Path(f"{path}.gz").is_file():
         raise CaseError(f"case {case}: missing {relative}")
@@ -57,14 +72,7 @@ def expand(openfoam: OpenFOAM, case: Path, relative: str, parse: bool = True) ->
         raise CaseError(f"{path}: foamDictionary did not read it within {TIMEOUT_S:g} s") from None
     if result.returncode != 0:
         raise CaseError(_read_error(path, relative, result.stdout + result.stderr))
-    text = _strip_banner(result.stdout)
-    if not parse:
-        return {}
-    try:
-        return _plain(FoamFile.loads(text)) if text.strip() else {}
-    except Exception as err:  # noqa: BLE001 - foamlib's own errors carry the position
-        first = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
-        raise CaseError(f"{path}: cannot parse OpenFOAM's expansion of it ({first})") from None
+    return _strip_banner(result.stdout)
 
 
 def _strip_banner(output: str) -> str:

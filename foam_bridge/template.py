@@ -21,6 +21,7 @@ import subprocess
 from collections.abc import Mapping
 from pathlib import Path
 
+import numpy as np
 from foamlib import FoamFile
 
 from foam_bridge.config import STEP_HEIGHT_H, FoamEnvConfig
@@ -103,11 +104,12 @@ def _is_number(text: str) -> bool:
         return False
 
 
-def run_application(openfoam: OpenFOAM, application: str, case: Path) -> None:
-    """Run an OpenFOAM utility in ``case`` (log in ``log.<application>``); CaseError on failure."""
+def run_application(openfoam: OpenFOAM, application: str, case: Path, *args: str) -> None:
+    """Run an OpenFOAM utility in ``case`` with ``args`` (log in ``log.<application>``); CaseError on
+    failure."""
     log = case / f"log.{application}"
     with open(log, "wb") as out:
-        result = subprocess.run([openfoam.executable(application), "-case", str(case)], cwd=case,
+        result = subprocess.run([openfoam.executable(application), "-case", str(case), *args], cwd=case,
                                 env=openfoam.environment(case), stdout=out, stderr=subprocess.STDOUT,
                                 check=False)
     if result.returncode != 0:
@@ -123,7 +125,14 @@ def patch_names(case: Path) -> list[str]:
 
 
 def cell_count(case: Path) -> int:
-    """Number of cells of the case's mesh (from the header note of constant/polyMesh/owner)."""
-    note = str(FoamFile(case / "constant" / "polyMesh" / "owner")["FoamFile"]["note"])
-    fields = dict(item.split(":") for item in note.strip('"').split())
+    """Number of cells of the case's mesh: the header note of constant/polyMesh/owner (``owner.gz``
+    too), which OpenFOAM's mesh writers leave; a shipped mesh without it (airFoil2D's) is counted from
+    the owner list itself (the largest cell label + 1, ~0.3 s for 40k faces)."""
+    owner = case / "constant" / "polyMesh" / "owner"
+    owner = owner if owner.is_file() else owner.with_name("owner.gz")
+    file = FoamFile(owner)
+    note = file["FoamFile"].get("note")
+    if note is None:
+        return int(np.max(file[None])) + 1
+    fields = dict(item.split(":") for item in str(note).strip('"').split())
     return int(fields["nCells"])

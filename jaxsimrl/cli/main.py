@@ -19,7 +19,7 @@ from jaxsimrl.runs.signals import exit_code, stop_word, terminate_as_interrupt
 # Modules that contribute subcommands.
 SUBCOMMAND_MODULES = ("jaxsimrl.cli.lorenz", "jaxsimrl.cli.eval_lorenz", "jaxsimrl.cli.foam",
                       "jaxsimrl.cli.train_foam", "jaxsimrl.cli.eval_foam", "jaxsimrl.cli.plot",
-                      "jaxsimrl.cli.solve")
+                      "jaxsimrl.cli.solve", "jaxsimrl.cli.family")
 
 
 def build_parser() -> OneLineArgumentParser:
