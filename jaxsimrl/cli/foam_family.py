@@ -9,7 +9,8 @@ foam_bridge.user_case), algorithm. What one controller needs to act on all of th
 - the action is a share of each case's box (``action_share``), three factors (U, p, turbulence);
 - the reward is scaled per case by 100 / the iterations of the case's own settings, so that a case ten
   times longer than another does not outweigh it tenfold; and each case's budget is
-  ``BUDGET_FACTOR`` x those iterations (a bad episode costs a bounded multiple of a good one).
+  ``BUDGET_FACTOR`` x those iterations (a bad episode costs a bounded multiple of a good one), or the
+  case's own budget where its own settings do not converge.
 
 The own runs are measured here once, before the run starts (a progress line each), and the family's
 configs are written into config.json, so a resumed run measures nothing again.
@@ -89,12 +90,14 @@ def _case_config(cfg: FoamEnvConfig, case: Path, checked: tuple[Path, Any], own_
     if mapping is None:
         raise ValueError(f"--family: case {case}: {why}")
     own = run_own(case, own_dir, "own", 24 * 3600.0)
-    iterations = own.iterations if own.converged else cfg.max_iterations
-    budget = min(cfg.max_iterations, math.ceil(BUDGET_FACTOR * iterations / cfg.interval) * cfg.interval)
+    # a case its own settings do not converge keeps its own budget (the iterations they ran: its endTime)
+    iterations = max(own.iterations, cfg.interval)
+    budget = math.ceil((BUDGET_FACTOR if own.converged else 1) * iterations / cfg.interval) * cfg.interval
+    budget = min(cfg.max_iterations, budget)
     say(f"family case {name}: {settings.variant}, own settings {'converge in' if own.converged else 'reach'}"
         f" {own.iterations} iterations; budget {budget}")
     return dataclasses.replace(cfg, observed_fields=tuple(mapping.values()), max_iterations=budget,
-                               reward_scale=REWARD_UNIT / max(iterations, 1)).validate()
+                               reward_scale=REWARD_UNIT / iterations).validate()
 
 
 def _names(cases: Sequence[Path]) -> list[str]:

@@ -221,14 +221,19 @@ def _check_ray_address(backend: str, address: str | None, run: Path | None = Non
 
 def _check_init_action(ppo: Any, foam: Any) -> None:
     """ValueError unless ``ppo.init_action`` (if set) has one factor per action, each in the env's box."""
+    import numpy as np
+
+    from foam_bridge.env import action_spec
+
     action = ppo.init_action
     if action is None:
         return
     if len(action) != foam.action_size:
         raise ValueError(f"init_action: expected {foam.action_size} factors, got {len(action)}")
-    if any(not lo <= a <= hi for a, lo, hi in zip(action, foam.action_low, foam.action_high, strict=True)):
-        raise ValueError(f"init_action: {list(action)} is outside the action box "
-                         f"[{list(foam.action_low)}, {list(foam.action_high)}]")
+    box = action_spec(foam)  # shares of each case's box with action_share
+    low, high = (np.asarray(bound, np.float64).tolist() for bound in (box.low, box.high))
+    if any(not lo <= a <= hi for a, lo, hi in zip(action, low, high, strict=True)):
+        raise ValueError(f"init_action: {list(action)} is outside the action box [{low}, {high}]")
 
 
 def _carry_policy_settings(policy: Any, ppo: Any, given: set[str]) -> Any:
@@ -258,6 +263,7 @@ def _starting_policy(run_dir: str, ppo: Any, foam: Any, checkpoint: int | None =
     network, observation and action box."""
     import numpy as np
 
+    from foam_bridge.env import action_spec
     from jaxsimrl.policy import load_policy
 
     try:
@@ -272,7 +278,8 @@ def _starting_policy(run_dir: str, ppo: Any, foam: Any, checkpoint: int | None =
     if mine != theirs:
         raise UsageError(f"--init-from: {run_dir} has (network, hidden sizes, activation, observation size) "
                          f"{theirs}, this run {mine}")
-    box = (list(foam.action_low), list(foam.action_high))
+    spec = action_spec(foam)  # shares of each case's box with action_share
+    box = (spec.low.tolist(), spec.high.tolist())
     same_size = len(policy.action_low) == len(box[0])  # 2 factors, or 3 with the k/omega action
     if not (same_size and np.allclose(policy.action_low, box[0]) and np.allclose(policy.action_high, box[1])):
         raise UsageError(f"--init-from: {run_dir} acts in the box {policy.action_low.tolist()}-"

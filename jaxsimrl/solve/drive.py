@@ -16,6 +16,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from foam_bridge.config import FoamEnvConfig
+from foam_bridge.env import factors_of
 from jaxsimrl.solve.watchdog import Watchdog, WatchdogSettings
 
 
@@ -83,7 +84,7 @@ def drive(cfg: FoamEnvConfig, actor: Callable[[float], Actor], fallback: list[fl
             raise ValueError(reply.error) if reply.kind in BAD_INPUT_ERRORS else RuntimeError(reply.error)
         obs, info = reply.value
         run.inlet_speed = float(info.get("inlet_velocity", float("nan")))
-        _loop(backend, Request, actor(run.inlet_speed), fallback, obs,
+        _loop(backend, Request, cfg, actor(run.inlet_speed), fallback, obs,
               Watchdog(dict(cfg.convergence), watchdog), run, say, on_step or (lambda run: None))
     finally:
         backend.close()
@@ -91,8 +92,9 @@ def drive(cfg: FoamEnvConfig, actor: Callable[[float], Actor], fallback: list[fl
     return run
 
 
-def _loop(backend: Any, request: Any, actor: Actor, fallback: list[float], obs: Any, dog: Watchdog,
-          run: ControlledRun, say: Callable[[str], None], on_step: Callable[[ControlledRun], None]) -> None:
+def _loop(backend: Any, request: Any, cfg: FoamEnvConfig, actor: Actor, fallback: list[float], obs: Any,
+          dog: Watchdog, run: ControlledRun, say: Callable[[str], None],
+          on_step: Callable[[ControlledRun], None]) -> None:
     residuals = None
     while True:
         if dog.fired is None:
@@ -100,7 +102,8 @@ def _loop(backend: Any, request: Any, actor: Actor, fallback: list[float], obs: 
         else:
             action, source = list(fallback), "own factors (watchdog)"
         reply = backend.run([request(0, "step", {"action": np.asarray(action)})])[0]
-        step = {"from_iteration": run.iterations, "action": action, "source": source}
+        factors = factors_of(cfg, action).tolist() if cfg.action_share else action  # what the solver got
+        step = {"from_iteration": run.iterations, "action": factors, "source": source}
         if not reply.ok:
             run.outcome, run.cause = "crashed", reply.error or "the worker died"
             run.steps.append({**step, "outcome": "crashed"})
@@ -110,7 +113,7 @@ def _loop(backend: Any, request: Any, actor: Actor, fallback: list[float], obs: 
         run.cause, residuals = info.get("cause", ""), info["residuals"]
         run.steps.append({**step, "to_iteration": run.iterations, "residuals": residuals,
                           "outcome": run.outcome})
-        say(f"  {run.iterations:5d} it  factors {', '.join(f'{a:.3f}' for a in action)}  ({source})  "
+        say(f"  {run.iterations:5d} it  factors {', '.join(f'{a:.3f}' for a in factors)}  ({source})  "
             f"{_residual_text(residuals, dog.criterion)}")
         if terminated or truncated:
             run.record = dict(info.get("episode") or {})

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from foam_bridge.env import FAILURES
+from foam_bridge.env import FAILURES, shares_of
 from foam_bridge.errors import OpenFOAMNotFoundError
 from foam_bridge.export import export_case
 from foam_bridge.logparse import solved_field_names
@@ -218,6 +218,9 @@ def _controlled(cfg: Any, trained: Any, settings: Any, controller: Any, watchdog
         say(skip)
         return ControlledRun(outcome="not run", events=[{"kind": "not applicable", "at_iteration": 0,
                                                          "reason": skip, "then": "the case's own run"}])
+    if cfg.action_share:  # the controller acts in shares of the case's box: so must its fallback
+        fallback = shares_of(cfg, fallback).tolist()
+
     def actor(speed: float) -> LearnedActor:
         loaded = controller if isinstance(controller, Controller) else controller.result()
         return LearnedActor(loaded.policy, observation_factor(trained, speed))

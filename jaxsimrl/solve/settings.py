@@ -24,7 +24,7 @@ from jaxsimrl.solve.fields import observed_mapping
 
 #: FoamEnvConfig fields that define the policy's MDP (observation, action meaning); copied when present.
 POLICY_FIELDS = ("interval", "residual_features", "state_scale", "observe_progress", "observe_action",
-                 "scale_free_state")
+                 "scale_free_state", "observe_state", "observe_algorithm", "action_share")
 #: The policy's turbulence setting that is part of its action (helper config: a third action).
 TURBULENCE_ACTION = "action"
 #: The iteration budget when the case's controlDict gives none (endTime / deltaT).
@@ -122,10 +122,12 @@ def not_applicable(policy_cfg: FoamEnvConfig, settings: CaseSettings,
     each field it observes (jaxsimrl.solve.fields; ``solved``: the case's CaseInfo.solved_fields); and one
     that observes the flow state, scaled by the inlet's, needs an inlet (``inlet``: the solve's patch)."""
     trained = policy_cfg.variant if policy_cfg.case_dir is None else policy_cfg.simple_variant
+    if getattr(policy_cfg, "observe_algorithm", False):  # trained on both: it reads which one the case uses
+        trained = None
     if trained is not None and trained != settings.variant:
         return (f"the controller was trained on {trained} and the case uses {settings.variant}: its factors "
                 f"do not transfer, so the case runs with its own settings")
-    if inlet is None:
+    if inlet is None and getattr(policy_cfg, "observe_state", True):
         return (f"the controller observes the flow relative to the inlet's and the case has no patch named "
                 f"{DEFAULT_INLET!r} (--inlet-patch NAME names its inlet), so the case runs with its own "
                 f"settings")
@@ -188,6 +190,8 @@ def solve_config(case: Path, policy_cfg: FoamEnvConfig, work: Path, max_iteratio
     copied = {name: getattr(policy_cfg, name) for name in POLICY_FIELDS if hasattr(policy_cfg, name)}
     if getattr(policy_cfg, "relax_k_omega", None) == TURBULENCE_ACTION:
         copied["relax_k_omega"] = TURBULENCE_ACTION
+    if copied.get("observe_algorithm"):  # it observes which one: the case's own, written out as it is
+        copied["simple_variant"] = read_case_settings(case, start_time).variant
     interval = min(copied.get("interval", 100), max_iterations)
     inlet_patch = inlet_of(case, inlet_patch, find_openfoam(policy_cfg.openfoam_path))
     cfg = FoamEnvConfig(**{**copied, "interval": interval}, case_dir=case, max_iterations=max_iterations,
@@ -277,7 +281,8 @@ def own_action(settings: CaseSettings, cfg: FoamEnvConfig, size: int) -> list[fl
 def observation_factor(policy_cfg: FoamEnvConfig, inlet_speed: float) -> float:
     """What the observed state is multiplied by so that the case's inlet speed reads as the middle of the
     policy's training range (1 when the policy's state is scale-free or either speed is unknown)."""
-    if getattr(policy_cfg, "scale_free_state", False) or not (math.isfinite(inlet_speed) and inlet_speed > 0):
+    if getattr(policy_cfg, "scale_free_state", False) or not getattr(policy_cfg, "observe_state", True) \
+            or not (math.isfinite(inlet_speed) and inlet_speed > 0):
         return 1.0
     try:
         trained = policy_cfg.velocity_range
