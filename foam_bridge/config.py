@@ -171,6 +171,10 @@ class FoamEnvConfig:
             action_low + a (action_high - action_low) (:func:`factors_of`): one controller acts in each
             case's own box (plain SIMPLE's is the case's own factors' neighbourhood,
             foam_bridge.user_case), where absolute factors would mean a different thing in each.
+        action_pivot: with ``action_share``, the factors at share 0.5 (the case's own, so that one
+            controller's "0.5" is every case's own settings, above it more aggressive, below more
+            cautious); the map is linear from action_low to it and from it to action_high. None: linear
+            over the whole box.
         reward_scale: every step's reward (a failure's too) is multiplied by it; a family of cases that
             differ tenfold in iterations weighs each alike with 100 / the case's own iterations.
         reward: the cost whose increase is the negative reward of a step, one of REWARDS:
@@ -224,6 +228,7 @@ class FoamEnvConfig:
     observe_state: bool = True
     observe_algorithm: bool = False
     action_share: bool = False
+    action_pivot: tuple[float, ...] | None = None
     reward_scale: float = 1.0
     state_scale: float = U_REF**2
     failure_penalty: float | None = None
@@ -298,6 +303,10 @@ class FoamEnvConfig:
                    names, "None or a non-empty tuple of distinct field names")
         _check(self.reward in REWARDS, "reward", self.reward, f"one of {REWARDS}")
         _check(self.reward_scale > 0 and math.isfinite(self.reward_scale), "reward_scale", self.reward_scale)
+        pivot = self.action_pivot
+        _check(pivot is None or len(pivot) == len(self.action_low) and all(
+            lo <= x <= hi for x, lo, hi in zip(pivot, self.action_low, self.action_high, strict=True)),
+            "action_pivot", pivot, "None or one factor per action, each in the box")
         _check(not self.observe_algorithm or self.variant is not None, "observe_algorithm",
                self.observe_algorithm, "simple_variant set (the algorithm observed)")
         _check(_is_int(self.start_time) and self.start_time >= 0 and not (self.start_time and self.builtin),
@@ -430,9 +439,10 @@ class FoamEnvConfig:
 
 
 #: Fields stored as JSON lists that FoamEnvConfig holds as tuples.
-_JSON_TUPLE_FIELDS = ("action_low", "action_high", "turbulence_fields", "inlet_turbulence", "observed_fields")
+_JSON_TUPLE_FIELDS = ("action_low", "action_high", "turbulence_fields", "inlet_turbulence", "observed_fields",
+                      "action_pivot")
 #: Fields to_json leaves out at None (added after runs were written; their JSON stays byte-identical).
-_OMITTED_WHEN_NONE = ("observed_fields",)
+_OMITTED_WHEN_NONE = ("observed_fields", "action_pivot")
 #: Fields to_json leaves out at their default, for the same reason.
 _OMITTED_AT_DEFAULT = ("observe_state", "observe_algorithm", "action_share", "reward_scale")
 

@@ -555,12 +555,17 @@ def action_spec(cfg: FoamEnvConfig) -> BoxSpec:
 
 def factors_of(cfg: FoamEnvConfig, action: Any) -> np.ndarray:
     """The factors an action sets, in the box: the action itself, or with ``action_share`` the point
-    that share of the way from action_low to action_high (shares clipped into [0, 1])."""
+    that share of the way from action_low to action_high (shares clipped into [0, 1]), through
+    ``action_pivot`` at 0.5 where it is set."""
     low, high = np.asarray(cfg.action_low, np.float64), np.asarray(cfg.action_high, np.float64)
-    if cfg.action_share:
-        share = np.clip(np.asarray(action, np.float64), 0.0, 1.0)
+    if not cfg.action_share:
+        return clip_to_box(action, low, high)
+    share = np.clip(np.asarray(action, np.float64), 0.0, 1.0)
+    if cfg.action_pivot is None:
         return clip_to_box(low + share * (high - low), low, high)
-    return clip_to_box(action, low, high)
+    pivot = np.asarray(cfg.action_pivot, np.float64)
+    below, above = low + 2 * share * (pivot - low), pivot + (2 * share - 1) * (high - pivot)
+    return clip_to_box(np.where(share < 0.5, below, above), low, high)
 
 
 def shares_of(cfg: FoamEnvConfig, factors: Any) -> np.ndarray:
@@ -568,6 +573,11 @@ def shares_of(cfg: FoamEnvConfig, factors: Any) -> np.ndarray:
     if not cfg.action_share:
         return np.asarray(factors, np.float64)
     low, high = np.asarray(cfg.action_low, np.float64), np.asarray(cfg.action_high, np.float64)
-    span = np.where(high > low, high - low, 1.0)
-    return np.clip((np.asarray(factors, np.float64) - low) / span, 0.0, 1.0)
+    factors = np.clip(np.asarray(factors, np.float64), low, high)
+    if cfg.action_pivot is None:
+        return (factors - low) / np.where(high > low, high - low, 1.0)
+    pivot = np.asarray(cfg.action_pivot, np.float64)
+    below = 0.5 * (factors - low) / np.where(pivot > low, pivot - low, 1.0)
+    above = 0.5 + 0.5 * (factors - pivot) / np.where(high > pivot, high - pivot, 1.0)
+    return np.clip(np.where(factors < pivot, below, above), 0.0, 1.0)
 

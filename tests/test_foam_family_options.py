@@ -32,6 +32,20 @@ def test_shares_map_onto_the_box_and_back() -> None:
     assert action_spec(absolute).low == pytest.approx([0.2, 0.3])
 
 
+def test_a_pivot_puts_the_case_s_own_factors_at_one_half() -> None:
+    cfg = FoamEnvConfig(action_low=(0.2, 0.2), action_high=(0.95, 1.0), action_share=True,
+                        action_pivot=(0.9, 1.0))
+    assert factors_of(cfg, [0.5, 0.5]) == pytest.approx([0.9, 1.0])
+    assert factors_of(cfg, [0.0, 0.25]) == pytest.approx([0.2, 0.6])
+    assert factors_of(cfg, [1.0, 1.0]) == pytest.approx([0.95, 1.0])
+    assert factors_of(cfg, [0.75, 0.0]) == pytest.approx([0.925, 0.2])
+    for factors in ([0.9, 1.0], [0.2, 0.6], [0.925, 0.3], [0.55, 0.95]):
+        assert factors_of(cfg, shares_of(cfg, factors)) == pytest.approx(factors)
+    assert FoamEnvConfig.from_json(cfg.to_json()) == cfg and "action_pivot" not in FoamEnvConfig().to_json()
+    with pytest.raises(ValueError, match="action_pivot"):
+        FoamEnvConfig(action_low=(0.2, 0.2), action_high=(0.95, 0.95), action_pivot=(0.9, 1.0)).validate()
+
+
 def test_the_options_size_the_observation_and_leave_old_configs_json_alone() -> None:
     plain = FoamEnvConfig(residual_features=2, observe_progress=True, observe_action=True)
     shared = FoamEnvConfig(simple_variant="SIMPLEC", **SHARED)

@@ -6,7 +6,9 @@ foam_bridge.user_case), algorithm. What one controller needs to act on all of th
 - the observation leaves out the flow state (its scale is one flow's, and a case may have no inlet) and
   observes the algorithm (1 for SIMPLEC), the residuals of one field per role (velocity, the first
   turbulence field, pressure: jaxsimrl.solve.fields), progress and the factors in force;
-- the action is a share of each case's box (``action_share``), three factors (U, p, turbulence);
+- the action is a share of each case's box (``action_share``), three factors (U, p, turbulence), with
+  the case's own factors at 0.5 (``action_pivot``; the box widened to hold them): the initial policy's
+  mean is every case's own settings, and "above 0.5" means more aggressive than the user's own in any case;
 - the reward is scaled per case by 100 / the iterations of the case's own settings, so that a case ten
   times longer than another does not outweigh it tenfold; and each case's budget is
   ``BUDGET_FACTOR`` x those iterations (a bad episode costs a bounded multiple of a good one), or the
@@ -80,12 +82,13 @@ def _case_config(cfg: FoamEnvConfig, case: Path, checked: tuple[Path, Any], own_
     from jaxsimrl.envs.foam_config import user_case_config
     from jaxsimrl.solve.fields import observed_mapping
     from jaxsimrl.solve.own import run_own
-    from jaxsimrl.solve.settings import check_factor, read_case_settings
+    from jaxsimrl.solve.settings import around_own, check_factor, read_case_settings
 
     settings, info = read_case_settings(case, 0), checked[1]
     confirm = None if cfg.confirm_alpha_u is None else check_factor(settings)  # as solve checks the case
     cfg = user_case_config(dataclasses.replace(cfg, simple_variant=settings.variant, confirm_alpha_u=confirm),
                            [], checked=checked)
+    cfg = around_own(cfg, settings)
     mapping, why = observed_mapping(cfg, info.solved_fields)
     if mapping is None:
         raise ValueError(f"--family: case {case}: {why}")

@@ -212,6 +212,8 @@ def solve_config(case: Path, policy_cfg: FoamEnvConfig, work: Path, max_iteratio
     if residual is not None:
         criterion = resolve(residual, solved_field_names(info.solved_fields), case)
         cfg = dataclasses.replace(cfg, convergence=criterion).validate()
+    if getattr(policy_cfg, "action_pivot", None) is not None:  # it acts around each case's own factors
+        cfg = around_own(cfg, read_case_settings(case, start_time)).validate()
     mapping, _ = observed_mapping(policy_cfg, info.solved_fields)  # no mapping: not_applicable says why
     if mapping is not None:
         cfg = dataclasses.replace(cfg, observed_fields=tuple(mapping.values())).validate()
@@ -268,6 +270,15 @@ def check_factor(settings: CaseSettings) -> float:
     airFoil2D, U reads 2.3e-5 at 0.9 from fields the solver reads 6.9e-6 at 0.7 (criterion 1e-5)."""
     own = settings.factors[0]
     return own if own is not None and 0 < own < 1 else UNRELAXED_CHECK
+
+
+def around_own(cfg: FoamEnvConfig, settings: CaseSettings) -> FoamEnvConfig:
+    """The case's box widened to hold its own factors (a SIMPLEC case leaves p unrelaxed, 1.0, above the
+    built-in box's 0.95), and its own factors as the pivot: share 0.5 is the case's own settings."""
+    own = [1.0 if value is None else value for value in settings.factors][:cfg.action_size]
+    high = tuple(max(hi, factor) for hi, factor in zip(cfg.action_high, own, strict=True))
+    pivot = tuple(min(max(factor, lo), hi) for factor, lo, hi in zip(own, cfg.action_low, high, strict=True))
+    return dataclasses.replace(cfg, action_high=high, action_pivot=pivot)
 
 
 def own_action(settings: CaseSettings, cfg: FoamEnvConfig, size: int) -> list[float]:
