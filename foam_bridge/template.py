@@ -103,11 +103,12 @@ def _is_number(text: str) -> bool:
         return False
 
 
-def run_application(openfoam: OpenFOAM, application: str, case: Path) -> None:
-    """Run an OpenFOAM utility in ``case`` (log in ``log.<application>``); CaseError on failure."""
+def run_application(openfoam: OpenFOAM, application: str, case: Path, *options: str) -> None:
+    """Run an OpenFOAM utility in ``case`` with ``options`` (log in ``log.<application>``); CaseError on
+    failure."""
     log = case / f"log.{application}"
     with open(log, "wb") as out:
-        result = subprocess.run([openfoam.executable(application), "-case", str(case)], cwd=case,
+        result = subprocess.run([openfoam.executable(application), "-case", str(case), *options], cwd=case,
                                 env=openfoam.environment(case), stdout=out, stderr=subprocess.STDOUT,
                                 check=False)
     if result.returncode != 0:
