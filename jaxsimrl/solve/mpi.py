@@ -31,8 +31,9 @@ def check_ranks(case: Path, ranks: int | None) -> int:
     found = processor_count(case)
     if ranks is None or ranks == 1:
         if found:
+            hint = f"give --np {found} to run it in parallel, or " if found > 1 else ""
             raise ValueError(f"case {case} is decomposed into {found} subdomains (processor* directories): "
-                             f"give --np {found} to run it in parallel, or reconstruct it (reconstructPar)")
+                             f"{hint}reconstruct it (reconstructPar)")
         return 1
     if ranks < 1:
         raise ValueError(f"--np must be >= 1, got {ranks}")
