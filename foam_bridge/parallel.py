@@ -23,7 +23,10 @@ measured on OpenFOAM v1912 and Open MPI 4.1.4 (pitzDaily in 2 subdomains, a paus
 Killing: Open MPI's mpirun puts every rank in a process group of its own (``setpgid``), inside mpirun's
 session. A ``killpg`` of mpirun's group leaves the ranks; :func:`kill_session` SIGKILLs every process of
 the session (and any descendant that left it) while mpirun, the session leader, is unreaped, so the
-session id cannot have been reused.
+session id cannot have been reused. As a second line of defence each rank starts under ``setpriv
+--pdeathsig KILL`` (util-linux; skipped where it is missing): the kernel kills a rank whose mpirun died,
+as it kills mpirun whose bridge died (foam_bridge.solver's PR_SET_PDEATHSIG). Measured: after ``kill -9``
+of ``mpirun -np 2 sleep 301`` both ranks still ran 5 s later; under setpriv none was left after 0.3 s.
 
 Open MPI refuses to run as root unless asked (``--allow-run-as-root``) and refuses more ranks than cores
 unless asked (``--oversubscribe``): the bridge passes both (the latter also makes waiting ranks yield
@@ -66,7 +69,10 @@ def solver_command(openfoam: OpenFOAM, case: Path, ranks: int) -> list[str]:
     if ranks <= 1:
         return solver
     root = ["--allow-run-as-root"] if os.geteuid() == 0 else []
-    return [mpirun_path(openfoam), "-np", str(ranks), "--oversubscribe", *root, *solver, "-parallel"]
+    setpriv = shutil.which("setpriv", path=f"{openfoam.path}{os.pathsep}/usr/bin:/bin")
+    dies_with_mpirun = [setpriv, "--pdeathsig", "KILL"] if setpriv else []
+    return [mpirun_path(openfoam), "-np", str(ranks), "--oversubscribe", *root, *dies_with_mpirun, *solver,
+            "-parallel"]
 
 
 def processor_count(case: Path) -> int:
