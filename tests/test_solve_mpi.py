@@ -182,7 +182,7 @@ def _slow_solve(tmp_path: Path) -> tuple[subprocess.Popen, Path]:
 @needs_openfoam
 @needs_mpirun
 @pytest.mark.slow  # slow_case: steps over a minute
-@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGKILL])
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM, signal.SIGKILL])
 def test_a_stopped_np_2_solve_leaves_no_rank_within_5_s(tmp_path: Path, sig: signal.Signals) -> None:
     process, out = _slow_solve(tmp_path)
     try:
