@@ -148,15 +148,22 @@ def kill_session(leader: int) -> None:
         time.sleep(0.02)
 
 
-def reconstruct_into(source: Path, dest: Path, openfoam: OpenFOAM, time_name: str | None = None) -> None:
+def reconstruct_into(source: Path, dest: Path, openfoam: OpenFOAM, time_name: str | None = None,
+                     mesh: bool = False) -> None:
     """Reconstruct the fields of one time (default the latest) of the decomposed ``source`` into
     ``dest``, a case with its own system/ (no FIFO #included) and constant/: ``source``'s processor*
-    directories are linked into ``dest`` while reconstructPar reads them, then unlinked."""
+    directories are linked into ``dest`` while reconstructPar reads them, then unlinked. ``mesh``: first
+    the mesh too (``reconstructParMesh -constant``), for a ``dest`` without one."""
     links = []
     try:
         for processor in sorted(source.glob("processor*")):
             links.append(dest / processor.name)
             links[-1].symlink_to(processor.resolve())
+        if mesh:
+            from foam_bridge.template import run_application
+
+            # its default merge tolerance (1e-7) is refused for a case written with 6 digits (the default)
+            run_application(openfoam, "reconstructParMesh", dest, "-constant", "-mergeTol", "1e-6")
         reconstruct(dest, openfoam, time_name)
     finally:
         for link in links:

@@ -46,19 +46,18 @@ def check_ranks(case: Path, ranks: int | None) -> int:
 
 def prepared_input(case: Path, out: Path) -> Path:
     """The case a decomposed ``case`` is solved from: itself, or (when its processor directories hold a
-    later time than its top level) a copy in ``out/INPUT_DIR`` with that time reconstructed."""
+    later time than its top level) a copy in ``out/INPUT_DIR`` with that time reconstructed (and the mesh,
+by reconstructParMesh, if its top level has none: decomposePar's input may have been removed)."""
     if not processor_count(case):
         return case
     top = [value for value, _ in time_directories(case)]
     ranks = [(value, path) for value, path in time_directories(case / "processor0")]
     if not ranks or (top and ranks[-1][0] <= top[-1]):
         return case
-    if not (case / "constant" / "polyMesh" / "boundary").is_file():
-        raise ValueError(f"case {case} has no mesh at its top level (constant/polyMesh): reconstruct it "
-                         f"(reconstructParMesh -constant; reconstructPar)")
     copy = out / INPUT_DIR / case.name
     shutil.copytree(case, copy, ignore=shutil.ignore_patterns("processor*", "log.*"))
-    reconstruct_into(case, copy, find_openfoam(), ranks[-1][1].name)
+    meshed = (copy / "constant" / "polyMesh" / "boundary").is_file()
+    reconstruct_into(case, copy, find_openfoam(), ranks[-1][1].name, mesh=not meshed)
     return copy
 
 
