@@ -27,6 +27,8 @@ session id cannot have been reused. As a second line of defence each rank starts
 --pdeathsig KILL`` (util-linux; skipped where it is missing): the kernel kills a rank whose mpirun died,
 as it kills mpirun whose bridge died (foam_bridge.solver's PR_SET_PDEATHSIG). Measured: after ``kill -9``
 of ``mpirun -np 2 sleep 301`` both ranks still ran 5 s later; under setpriv none was left after 0.3 s.
+simpleFoam's own ranks, MPI programs, ended 1.1 s after ``kill -9`` of their mpirun without it (they
+notice the lost daemon): the two defences make that immediate, and cover a rank that does not notice.
 
 Open MPI refuses to run as root unless asked (``--allow-run-as-root``) and refuses more ranks than cores
 unless asked (``--oversubscribe``): the bridge passes both (the latter also makes waiting ranks yield
