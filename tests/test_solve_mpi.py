@@ -215,3 +215,29 @@ def test_a_killed_rank_ends_its_run_within_5_s(tmp_path: Path) -> None:
     finally:
         if process.poll() is None:
             process.kill()
+
+
+@needs_openfoam
+@needs_mpirun
+@pytest.mark.slow  # slow_case: steps over a minute
+def test_a_hung_parallel_step_is_stopped_with_every_rank(tmp_path: Path) -> None:
+    """--step-timeout 15 on a step that needs over 35 s: the watchdog's stop leaves no rank of the
+    controlled run within 5 s of its deadline (the solve then goes on with the case's own settings,
+    stopped here by SIGTERM)."""
+    case = slow_pitz_daily(tmp_path / "slow")
+    out = tmp_path / "out"
+    process = _cli(str(case), "--out", str(out), "--np", "2", "--step-timeout", "15", cwd=tmp_path)
+    episode = out / ".solve-work" / "env_0" / "episode"
+    try:
+        wait_until(lambda: iterations_in(episode / "log.simpleFoam") >= 1 or process.poll() is not None, 300,
+                   "the controlled run's first iteration")
+        took = seconds_until(lambda: not _solvers_under(episode), 60.0)  # the step started before this
+        assert took < 15 + STOP_LIMIT_S, f"the hung run's processes lasted {took:.1f} s"
+        assert iterations_in(episode / "log.simpleFoam") < 100  # stopped mid-step, not at its end
+        assert process.poll() is None  # the solve goes on (the case's own settings)
+        process.send_signal(signal.SIGTERM)
+        assert seconds_until(lambda: not _solvers_under(tmp_path), 30.0) < STOP_LIMIT_S
+        process.communicate(timeout=30)
+    finally:
+        if process.poll() is None:
+            process.kill()
