@@ -112,6 +112,9 @@ class FoamEnvConfig:
             keeps that directory, without its ``uniform/time`` (its time index then counts from 0 at
             start_time, so that the writes every ``max_iterations`` or ``interval`` iterations of K
             fall where they do from 0). An integer: the bridge runs deltaT 1.
+        ranks: MPI ranks of the episode's solver (1: plain simpleFoam; N > 1: the episode case is
+            decomposed into N subdomains and runs ``mpirun -np N simpleFoam -parallel``, see
+            foam_bridge.parallel). A user's case only.
 
     MDP:
         interval: SIMPLE iterations per env step (the paper: 100).
@@ -244,6 +247,7 @@ class FoamEnvConfig:
     scale_free_state: bool = False
     observed_fields: tuple[str, ...] | None = None
     start_time: int = 0
+    ranks: int = 1
 
     def __post_init__(self) -> None:
         # the default box follows the action's size: [0.2, 0.95]^3 with alpha_t (see action_low)
@@ -273,6 +277,8 @@ class FoamEnvConfig:
                "inlet_patch", None, "an inlet patch where the inlet speed is set (the built-in case sets it)")
         _check(self.simple_variant is None or self.simple_variant in SIMPLE_VARIANTS, "simple_variant",
                self.simple_variant, f"None or one of {SIMPLE_VARIANTS}")
+        _check(_is_int(self.ranks) and self.ranks >= 1 and (self.ranks == 1 or not self.builtin), "ranks",
+               self.ranks, "an integer >= 1 (> 1 only for a user's case_dir)")
         _check(_is_int(self.interval) and self.interval >= 1, "interval", self.interval, "an integer >= 1")
         _check(_is_int(self.max_iterations) and self.max_iterations >= self.interval, "max_iterations",
                self.max_iterations, "an integer >= interval")

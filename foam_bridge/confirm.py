@@ -132,7 +132,7 @@ def confirm(episode: Path, base: Path, cfg: FoamEnvConfig, openfoam: OpenFOAM, i
     parser = LogParser(episode_case.CELLS_FUNCTION, episode_case.INLET_FUNCTION, cfg.divergence_threshold)
     error = ""
     try:
-        episode_case.write_check_case(episode, base, scratch, cfg, iteration, text)
+        episode_case.write_check_case(episode, base, scratch, cfg, iteration, text, openfoam)
         code, _ = run_to_end(scratch, openfoam, parser, cfg.step_timeout_s)
         if code != 0 or not parser.history:
             error = f"the check's simpleFoam exited with code {code}: {parser.error or 'no iteration ran'}"

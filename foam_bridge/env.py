@@ -188,7 +188,8 @@ class FoamCaseEnv:
             self._rng = np.random.default_rng(seed)
         velocity = self._episode_velocity(options or {})
         self._use_height(self._episode_height(options or {}))  # drawn after the velocity (see config)
-        episode_case.write_episode_case(self.base, self.case_dir, self.cfg, velocity, self.case_info)
+        episode_case.write_episode_case(self.base, self.case_dir, self.cfg, velocity, self.case_info,
+                                         self.openfoam)
         inlet, cells = episode_case.initial_state(self.case_info, velocity)
         if velocity is None:  # the user's case keeps its inlet: report its speed (NaN if it has none)
             velocity = math.nan if self.case_info.inlet_speed is None else self.case_info.inlet_speed
@@ -342,7 +343,7 @@ class FoamCaseEnv:
         self._target = self._iterations + self.cfg.interval
         if self._solver is None:
             fifo = partial(episode_case.relaxation_fifo, self.case_dir)
-            self._solver = FoamSolver(self.case_dir, self.openfoam, self._parser, fifo)
+            self._solver = FoamSolver(self.case_dir, self.openfoam, self._parser, fifo, self.cfg.ranks)
             if self._restart_at is not None:  # after a failed check: no start-up pause, these factors
                 episode_case.write_restart(self.case_dir, self.base, self.cfg, self._restart_at, text)
                 self._restart_at = None

@@ -55,6 +55,8 @@ from foamlib import FoamFile
 from foam_bridge.config import FOLLOW_ALPHA_U, K_OMEGA_ACTION, FoamEnvConfig, without_convergence_test
 from foam_bridge.fields import time_directory
 from foam_bridge.logparse import solved_field_names
+from foam_bridge.openfoam import OpenFOAM, find_openfoam
+from foam_bridge.parallel import decompose, reconstruct_into
 from foam_bridge.template import KINEMATIC_VISCOSITY, TURBULENCE_INTENSITY, VISCOSITY_RATIO, inlet_turbulence
 
 __all__ = ["BRIDGE_DIR", "CELLS_FUNCTION", "CONTROL_INCLUDE", "FIXED_RELAXATION", "INLET_FUNCTION",
@@ -114,10 +116,12 @@ class CaseInfo:
 
 
 def write_episode_case(base: Path, dest: Path, cfg: FoamEnvConfig, inlet_velocity: float | None,
-                       info: CaseInfo) -> None:
+                       info: CaseInfo, openfoam: OpenFOAM | None = None) -> None:
     """Fresh episode case in ``dest`` from the meshed ``base``: inlet, controlDict, fvSolution, FIFOs.
 
     ``inlet_velocity`` None keeps the case's own inlet (a user's case without ``inlet_velocity``).
+    With ``cfg.ranks`` > 1 the case is decomposed (``openfoam``'s decomposePar) once its fields and
+    controlDict are final and before fvSolution #includes a FIFO, which decomposePar would block on.
     """
     if dest.exists():
         shutil.rmtree(dest)
@@ -128,6 +132,8 @@ def write_episode_case(base: Path, dest: Path, cfg: FoamEnvConfig, inlet_velocit
         set_inlet = _set_builtin_inlet if cfg.case_dir is None else _set_user_inlet
         set_inlet(dest, cfg, info, inlet_velocity)
     write_control(dest, cfg, pause=True)
+    if cfg.ranks > 1:
+        decompose(dest, openfoam or find_openfoam(cfg.openfoam_path), cfg.ranks)
     _write_fv_solution(dest, cfg)
 
 
@@ -158,9 +164,12 @@ def write_restart(case: Path, base: Path, cfg: FoamEnvConfig, time: int, text: b
     write_control(case, cfg, pause=True, restart_at=time)
 
 
-def write_check_case(case: Path, base: Path, dest: Path, cfg: FoamEnvConfig, time: int, text: bytes) -> None:
+def write_check_case(case: Path, base: Path, dest: Path, cfg: FoamEnvConfig, time: int, text: bytes,
+                     openfoam: OpenFOAM | None = None) -> None:
     """A copy of the episode case in ``dest`` that runs one SIMPLE iteration from the fields of ``time``
-    with the factors ``text`` and no convergence test (foam_bridge.confirm); nothing is written."""
+    with the factors ``text`` and no convergence test (foam_bridge.confirm); nothing is written. A
+    decomposed episode's fields of ``time`` are reconstructed into ``dest`` (``openfoam``'s
+    reconstructPar): the check itself runs serial."""
     if dest.exists():
         shutil.rmtree(dest)
     dest.mkdir(parents=True)
@@ -168,10 +177,15 @@ def write_check_case(case: Path, base: Path, dest: Path, cfg: FoamEnvConfig, tim
         shutil.copytree(case / part, dest / part, symlinks=True,
                         ignore=lambda directory, names: {n for n in names if n.startswith(("relaxation.",
                                                                                              "fvSolution."))})
-    written = time_directory(case, cfg.start_time + time) or case / str(cfg.start_time + time)
-    shutil.copytree(written, dest / written.name)
     write_fixed_fv_solution(dest, base, cfg, text)
     write_control(dest, cfg, pause=False, functions=False, restart_at=time, end=time + 1)
+    if cfg.ranks > 1:
+        written = time_directory(case / "processor0", cfg.start_time + time)
+        reconstruct_into(case, dest, openfoam or find_openfoam(cfg.openfoam_path),
+                         str(cfg.start_time + time) if written is None else written.name)
+        return
+    written = time_directory(case, cfg.start_time + time) or case / str(cfg.start_time + time)
+    shutil.copytree(written, dest / written.name)
 
 
 def write_fixed_fv_solution(case: Path, base: Path, cfg: FoamEnvConfig, text: bytes) -> None:
@@ -295,7 +309,7 @@ def write_control(case: Path, cfg: FoamEnvConfig, pause: bool, functions: bool =
         "writeControl": "timeStep",
         "writeInterval": cfg.max_iterations if restart_at is None else cfg.interval,
         "runTimeModifiable": True,
-        "OptimisationSwitches": {"fileModificationSkew": 0, "fileModificationChecking": "timeStamp"},
+        "OptimisationSwitches": _switches(cfg),
         "functions": _function_objects(cfg, case, pause, restart_at or 0) if functions else {},
     }
     if cfg.case_dir is None:  # the built-in case's results are written losslessly; a user's as theirs
@@ -307,6 +321,16 @@ def write_control(case: Path, cfg: FoamEnvConfig, pause: bool, functions: bool =
     target.write_bytes(FoamFile.dumps(settings, ensure_header=False))
     if first:
         _append(case / "system" / "controlDict", f'#include "{CONTROL_INCLUDE}"')
+
+
+def _switches(cfg: FoamEnvConfig) -> dict[str, Any]:
+    """Re-read a modified file at once; in parallel on the master only, which opens the FIFO and
+    broadcasts fvSolution to the other ranks (foam_bridge.parallel says why: with ``timeStamp`` every
+    rank opens the FIFO and the ranks' re-reads come an iteration late)."""
+    if cfg.ranks <= 1:
+        return {"fileModificationSkew": 0, "fileModificationChecking": "timeStamp"}
+    return {"fileModificationSkew": 0, "fileModificationChecking": "timeStampMaster",
+            "fileHandler": "uncollated"}
 
 
 def _function_objects(cfg: FoamEnvConfig, case: Path, pause: bool, after: int = 0) -> dict[str, Any]:

@@ -44,6 +44,7 @@ from pathlib import Path
 
 from foam_bridge.logparse import LogParser
 from foam_bridge.openfoam import OpenFOAM
+from foam_bridge.parallel import kill_session, solver_command
 
 __all__ = ["EOF_TIMEOUT_S", "QUIET_POLL_S", "READ_BATCH_S", "FoamSolver", "run_to_end"]
 
@@ -85,9 +86,10 @@ class FoamSolver:
     """
 
     def __init__(
-        self, case: Path, openfoam: OpenFOAM, parser: LogParser, fifo: Callable[[int], Path]
+        self, case: Path, openfoam: OpenFOAM, parser: LogParser, fifo: Callable[[int], Path], ranks: int = 1
     ) -> None:
         self.case = case
+        self.ranks = ranks
         self.openfoam = openfoam
         self.parser = parser
         self.fifo = fifo
@@ -109,10 +111,12 @@ class FoamSolver:
         return self.process is not None and _exit_status(self.process.pid) is not None
 
     def start(self) -> None:
-        """Launch simpleFoam in a new session; it soon waits on FIFO 0 for the first factors."""
+        """Launch simpleFoam (``ranks`` > 1: under mpirun, the case decomposed) in a new session; it soon
+        waits on FIFO 0 for the first factors."""
+        command = solver_command(self.openfoam, self.case, self.ranks)
         self._log = open(self.case / "log.simpleFoam", "ab")  # noqa: SIM115 (closed in kill)
         self.process = subprocess.Popen(
-            [self.openfoam.executable("simpleFoam"), "-case", str(self.case)], cwd=self.case,
+            command, cwd=self.case,
             env=self.openfoam.environment(self.case), stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
             stderr=subprocess.STDOUT, start_new_session=True, preexec_fn=_die_with_parent(),  # noqa: PLW1509
         )
@@ -185,9 +189,8 @@ class FoamSolver:
         """
         code = None
         if self.process is not None and self.pgid is not None:
-            if self.process.returncode is None:  # never reaped: the group id is still ours
-                with contextlib.suppress(ProcessLookupError, PermissionError):
-                    os.killpg(self.pgid, signal.SIGKILL)
+            if self.process.returncode is None:  # never reaped: the group (session) id is still ours
+                _kill_all(self.pgid, self.ranks)
             try:
                 code = self.process.wait(EOF_TIMEOUT_S)
             except subprocess.TimeoutExpired:
@@ -273,20 +276,40 @@ def _exit_status(pid: int) -> int | None:
     return None if result is None else result.si_status
 
 
-def run_to_end(case: Path, openfoam: OpenFOAM, parser: LogParser, timeout_s: float) -> tuple[int, float]:
-    """Run simpleFoam on ``case`` once, start to end, without pauses (the reference for chunked runs).
+def _kill_all(leader: int, ranks: int) -> None:
+    """SIGKILL the solver's process group; under mpirun also every rank (each has a group of its own
+    in mpirun's session: foam_bridge.parallel). ``leader`` must be unreaped."""
+    with contextlib.suppress(ProcessLookupError, PermissionError):
+        os.killpg(leader, signal.SIGKILL)
+    if ranks > 1:
+        kill_session(leader)
+
+
+def run_to_end(case: Path, openfoam: OpenFOAM, parser: LogParser, timeout_s: float,
+               ranks: int = 1) -> tuple[int, float]:
+    """Run simpleFoam on ``case`` once, start to end, without pauses (the reference for chunked runs);
+    ``ranks`` > 1: under mpirun, ``case`` decomposed already.
 
     The case must not pause (see foam_bridge.episode_case.make_uninterrupted). The output goes to
-    ``log.simpleFoam`` and is parsed once the run has ended. Returns (exit code, wall seconds).
+    ``log.simpleFoam`` and is parsed once the run has ended. Returns (exit code, wall seconds); past
+    ``timeout_s``, or on any exception here (Ctrl-C), every process of the run is killed first.
     """
     log = case / "log.simpleFoam"
     start = time.monotonic()
     with open(log, "wb") as out:
-        result = subprocess.run([openfoam.executable("simpleFoam"), "-case", str(case)], cwd=case,
-                                env=openfoam.environment(case), stdin=subprocess.DEVNULL, stdout=out,
-                                stderr=subprocess.STDOUT, start_new_session=True, timeout=timeout_s,
-                                preexec_fn=_die_with_parent(), check=False)  # noqa: PLW1509
+        process = subprocess.Popen(solver_command(openfoam, case, ranks), cwd=case,
+                                   env=openfoam.environment(case), stdin=subprocess.DEVNULL, stdout=out,
+                                   stderr=subprocess.STDOUT, start_new_session=True,
+                                   preexec_fn=_die_with_parent())  # noqa: PLW1509
+        try:
+            code = process.wait(timeout_s)
+        except BaseException:  # the timeout, Ctrl-C: the leader is unreaped, its session still ours
+            if process.returncode is None:
+                _kill_all(process.pid, ranks)
+            process.wait()
+            raise
     wall = time.monotonic() - start
     parser.feed(log.read_bytes())
     parser.finish()
-    return result.returncode, wall
+    return code, wall
+

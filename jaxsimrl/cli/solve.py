@@ -3,8 +3,8 @@
     jaxsimrl solve my_case --out my_case.solved --compare
 
 Writes OUT: the case converged (a normal OpenFOAM case), solve.json, solve.png. Bad input (no such case,
-a decomposed case, a case the bridge cannot drive, a non-empty --out, a bad --policy, OpenFOAM missing)
-is one line on stderr and exit code 2.
+a decomposed case without --np of its count, no mpirun for --np, a case the bridge cannot drive, a non-empty
+--out, a bad --policy, OpenFOAM missing) is one line on stderr and exit code 2.
 """
 
 from __future__ import annotations
@@ -66,6 +66,13 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--inlet-patch", default=None, metavar="NAME",
                         help="the patch whose mean |U|^2 the controller observes (default: the case's "
                              "'inlet'; a case without one runs under a rule or its own settings)")
+    parser.add_argument("--np", type=positive_int, default=None, metavar="N", dest="ranks",
+                        help="run every simpleFoam of the solve on N MPI ranks (mpirun -np N simpleFoam "
+                        "-parallel): the case is decomposed with its decomposeParDict when that asks for N "
+                        "subdomains, else into N slabs (method simple); a decomposed CASE needs its own N. "
+                        "OUT holds the case reconstructed; 1: serial")
+    parser.add_argument("--keep-decomposed", action="store_true",
+                        help="with --np: also leave the ranks' processor* directories in OUT")
     parser.add_argument("--quiet", action="store_true", help="print only the summary")
     add_campaign_arguments(parser)
     parser.set_defaults(func=run_solve)
@@ -114,7 +121,8 @@ def solve_options(args: argparse.Namespace) -> dict[str, Any]:
     return {"policy": args.policy, "compare": args.compare, "compare_constant": args.compare_constant,
             "max_iterations": args.max_iterations, "confirm_alpha_u": args.confirm_alpha_u or "own",
             "step_timeout_s": args.step_timeout, "inlet_patch": args.inlet_patch, "residual": args.residual,
-            "from_time": args.from_time, "rule": None if args.controller == "learned" else args.controller}
+            "from_time": args.from_time, "rule": None if args.controller == "learned" else args.controller,
+            "ranks": args.ranks, "keep_decomposed": args.keep_decomposed}
 
 
 def run_solve(args: argparse.Namespace) -> int:
@@ -125,6 +133,8 @@ def run_solve(args: argparse.Namespace) -> int:
 
     if args.policy is not None and args.controller != "learned":
         fail(f"--policy is a learned controller; --controller {args.controller} needs no policy")
+    if args.keep_decomposed and (args.ranks or 1) < 2:
+        fail("--keep-decomposed needs --np N with N >= 2")
     if args.compare_constant is not None and len(args.compare_constant) not in (2, 3):
         fail(f"--compare-constant takes 2 or 3 factors (U P [TURBULENCE]), got {len(args.compare_constant)}")
     compilation_cache()

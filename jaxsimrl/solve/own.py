@@ -41,14 +41,17 @@ class OwnRun:
 
 
 def run_own(source: Path, dest: Path, label: str, timeout_s: float, factors: Sequence[float] | None = None,
-            flat: bool = False, criterion: Mapping[str, float] | None = None, start_time: int = 0) -> OwnRun:
+            flat: bool = False, criterion: Mapping[str, float] | None = None, start_time: int = 0,
+            ranks: int = 1) -> OwnRun:
     """Copy ``source`` to ``dest`` (mesh it if needed) and run simpleFoam once to its end; ``factors``:
     constant (alpha_u, alpha_p[, turbulence]) merged into its relaxationFactors (else its own);
     ``criterion``: its SIMPLE.residualControl instead of its own (solve's ``--residual``);
     ``start_time``: the time directory it starts from (``startFrom latestTime`` with only 0 and that one
-    copied), iterations counted from there."""
+    copied), iterations counted from there; ``ranks`` > 1: decomposed, run under mpirun and its latest
+    fields reconstructed, as the user would run it."""
     from foam_bridge.logparse import LogParser
     from foam_bridge.openfoam import find_openfoam
+    from foam_bridge.parallel import decompose, reconstruct
     from foam_bridge.solver import run_to_end
     from foam_bridge.template import copy_case, run_application
     from jaxsimrl.solve.criterion import write_criterion
@@ -68,7 +71,11 @@ def run_own(source: Path, dest: Path, label: str, timeout_s: float, factors: Seq
                       + constant_relaxation(factors, flat))
     parser = LogParser("", "", start=start_time)
     try:
-        code, wall = run_to_end(dest, openfoam, parser, timeout_s)
+        if ranks > 1:
+            decompose(dest, openfoam, ranks)
+        code, wall = run_to_end(dest, openfoam, parser, timeout_s, ranks)
+        if ranks > 1 and code == 0:
+            reconstruct(dest, openfoam)
     except Exception as err:  # noqa: BLE001 - a timeout or a broken case is this run's outcome
         return OwnRun(str(dest), label, False, parser.completed, 0.0, parser.execution_time, None,
                       parser.history, f"{type(err).__name__}: {err}")

@@ -10,7 +10,7 @@ written first with status "incomplete": a run killed before its end says so; Ctr
 
 from __future__ import annotations
 
-import os
+import dataclasses
 import shutil
 import time
 from collections.abc import Callable, Sequence
@@ -37,6 +37,14 @@ from jaxsimrl.solve.criterion import (
 from jaxsimrl.solve.drive import ControlledRun, LearnedActor, drive
 from jaxsimrl.solve.fields import observed_mapping
 from jaxsimrl.solve.live import LivePlot
+from jaxsimrl.solve.mpi import (
+    INPUT_DIR,
+    check_ranks,
+    export_source,
+    keep_processors,
+    prepared_input,
+    runs_side_by_side,
+)
 from jaxsimrl.solve.own import OwnProcess, OwnRun
 from jaxsimrl.solve.report import SolveReport, build_report, preload_plotting, write_report, write_status
 from jaxsimrl.solve.rules import RulePolicy
@@ -65,7 +73,8 @@ def solve_case(case: str | Path, out: str | Path, policy: Any = None,
                action_box: tuple[Sequence[float], Sequence[float]] | None = None,
                step_timeout_s: float = 300.0, inlet_patch: str | None = None,
                say: Callable[[str], None] | None = None, residual: Residual | str | None = None,
-               from_time: float | None = None, rule: str | None = None) -> SolveReport:
+               from_time: float | None = None, rule: str | None = None, ranks: int | None = None,
+               keep_decomposed: bool = False) -> SolveReport:
     """Run ``case`` with the controller (``policy``: a run directory, a :class:`Controller`, a policy from
     ``jaxsimrl.load_policy``, or None for the shipped one) into ``out``; see the module docstring. Bad
     input (a missing or decomposed case, a non-empty ``out``, a case the bridge cannot drive, a bad
@@ -78,19 +87,22 @@ def solve_case(case: str | Path, out: str | Path, policy: Any = None,
     solve and written into ``out``'s fvSolution (jaxsimrl.solve.criterion: ``1e-4``, ``{"p": 1e-3}`` or
     ``"p=1e-3,U=1e-4"``); ``from_time``: the case's time directory to start from (default its latest:
     a partly converged run goes on; iterations and the budget count from there); ``rule``: a
-    no-training rule (a key of jaxsimrl.solve.rules.RULES) instead of ``policy``."""
+    no-training rule (a key of jaxsimrl.solve.rules.RULES) instead of ``policy``; ``ranks``: MPI ranks of
+    every run (jaxsimrl.solve.mpi; a decomposed case needs its own count), ``keep_decomposed``: leave the
+    ranks' processor* directories in ``out`` too."""
     say = say or (lambda text: None)
     case, out = _check_paths(case, out)
-    begin = start_of(case, from_time)
+    ranks = check_ranks(case, ranks)
     started = time.monotonic()
     created = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
     write_status(out, "incomplete", case)
     others: list[OwnProcess] = []
     try:
-        report = _solve(case, out, policy, compare, compare_constant, max_iterations, confirm_alpha_u,
+        source = prepared_input(case, out)
+        report = _solve(source, out, policy, compare, compare_constant, max_iterations, confirm_alpha_u,
                         watchdog or WatchdogSettings(), (action_box, step_timeout_s, inlet_patch), residual,
-                        begin, say, started, others, rule)
+                        start_of(source, from_time), say, started, others, rule, (ranks, keep_decomposed))
     except KeyboardInterrupt as stop:  # Ctrl-C or SIGTERM: the finally blocks below stop every solver
         write_status(out, "interrupted", case, stop_word(stop))
         raise
@@ -106,6 +118,7 @@ def solve_case(case: str | Path, out: str | Path, policy: Any = None,
         for process in others:
             process.stop()
         shutil.rmtree(out / WORK_DIR, ignore_errors=True)
+        shutil.rmtree(out / INPUT_DIR, ignore_errors=True)
     return report
 
 
@@ -121,9 +134,6 @@ def _check_paths(case: str | Path, out: str | Path) -> tuple[Path, Path]:
     case, out = Path(case).expanduser().resolve(), Path(out).expanduser().resolve()
     if not case.is_dir():
         raise ValueError(f"case {case} is not a directory")
-    if any(case.glob("processor[0-9]*")):
-        raise ValueError(f"case {case} is decomposed (processor* directories): parallel cases are not "
-                         f"supported yet; give the undecomposed case (reconstructPar)")
     if out == case or case in out.parents:
         raise ValueError(f"--out {out} must be outside the case {case} (the case is never modified)")
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
@@ -135,7 +145,7 @@ def _solve(case: Path, out: Path, policy: Any, compare: bool, constant: Sequence
            max_iterations: int | None, confirm: float | str | None, watchdog: WatchdogSettings,
            env: tuple[Any, float, str], residual: Residual | str | None, begin: tuple[int, str],
            say: Callable[[str], None], started: float, others: list[OwnProcess],
-           rule: str | None) -> SolveReport:
+           rule: str | None, parallel_run: tuple[int, bool]) -> SolveReport:
     # What waits on what: the controller loads (JAX, its acting arrays, the first action compiled) in a
     # thread from here on, beside the case check (copy, mesh, one SIMPLE iteration: once, the controlled
     # run's env starts from its build) and the worker's start; the first step waits for both, every
@@ -152,11 +162,13 @@ def _solve(case: Path, out: Path, policy: Any, compare: bool, constant: Sequence
                          f"--max-iterations N (or --from-time)")
     budget = max_iterations or settings.budget or DEFAULT_MAX_ITERATIONS
     confirm = check_factor(settings) if confirm == OWN_CHECK else confirm
+    ranks, keep_decomposed = parallel_run
     cfg, checked = solve_config(case, trained, out / WORK_DIR, budget, confirm, *env, residual=residual,
                                 start_time=start)
+    cfg = dataclasses.replace(cfg, ranks=ranks).validate()
     phases["case_check_s"], mark = time.monotonic() - mark, time.monotonic()
-    own = Own(settings.flat, None if residual is None else dict(cfg.convergence), start)
-    parallel = len(os.sched_getaffinity(0)) >= 2  # else the runs would share one core: one after the other
+    own = Own(settings.flat, None if residual is None else dict(cfg.convergence), start, ranks)
+    parallel = runs_side_by_side(ranks)  # else the runs would share cores: one after the other
     comparisons = _start_comparisons(case, out, compare, constant, own, others) if parallel else {}
     observed = observed_mapping(trained, checked.info.solved_fields)[0]
     criterion_from = source_of(cfg.convergence, residual)
@@ -175,7 +187,11 @@ def _solve(case: Path, out: Path, policy: Any, compare: bool, constant: Sequence
     rescue = None
     if run.outcome == "not run" or run.outcome in FAILURES:  # a run that reached the budget keeps its fields
         rescue = _own_rescue(case, out, comparisons, run, own, say)
-    time_name = export_case(Path(rescue.case) if rescue is not None else episode, case, out, start_time=start)
+    run_case = Path(rescue.case) if rescue is not None else episode
+    time_name = export_case(export_source(run_case, case, out / WORK_DIR, ranks if rescue is None else 1),
+                            case, out, log=run_case / "log.simpleFoam", start_time=start)
+    if keep_decomposed:
+        keep_processors(run_case, out)
     if own.criterion is not None:  # a plain simpleFoam restart of out stops where this solve did
         write_criterion(out, own.criterion)
     phases["fallback_and_export_s"] = time.monotonic() - mark
@@ -198,6 +214,7 @@ def _solve(case: Path, out: Path, policy: Any, compare: bool, constant: Sequence
     for name, other in results.items():
         report.data["compare"][name]["converged_by"] = own_converged_by(other, criterion_from)
     report.data["compare_parallel"] = parallel
+    report.data["settings"]["ranks"] = ranks
     write_report(out, report)
     return report
 
@@ -243,6 +260,7 @@ class Own:
     flat: bool
     criterion: dict[str, float] | None
     start: int = 0
+    ranks: int = 1
 
 
 def _start_comparisons(case: Path, out: Path, compare: bool, constant: Sequence[float] | None, own: Own,
@@ -258,7 +276,8 @@ def _start_comparisons(case: Path, out: Path, compare: bool, constant: Sequence[
     for name, factors in wanted.items():
         dest = out / COMPARE_DIR / name
         dest.parent.mkdir(parents=True, exist_ok=True)
-        started[name] = OwnProcess(case, dest, name, 24 * 3600.0, factors, own.flat, own.criterion, own.start)
+        started[name] = OwnProcess(case, dest, name, 24 * 3600.0, factors, own.flat, own.criterion, own.start,
+                                   own.ranks)
         others.append(started[name])
     return started
 
@@ -282,7 +301,7 @@ def _own_rescue(case: Path, out: Path, comparisons: dict[str, OwnProcess], run: 
         result = comparisons["own"].result(24 * 3600.0)
     else:
         process = OwnProcess(case, out / WORK_DIR / "own", "own", 24 * 3600.0, None, False, own.criterion,
-                             own.start)
+                             own.start, own.ranks)
         try:
             result = process.result(24 * 3600.0)
         finally:
