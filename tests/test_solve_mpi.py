@@ -209,12 +209,17 @@ def test_a_killed_rank_ends_its_run_within_5_s(tmp_path: Path) -> None:
         os.kill(rank, signal.SIGKILL)
         took = seconds_until(lambda: not _solvers_under(episode), 30.0)
         assert took < STOP_LIMIT_S, f"the run's processes lasted {took:.1f} s after a rank died"
-        process.send_signal(signal.SIGTERM)
-        assert seconds_until(lambda: not _solvers_under(tmp_path), 30.0) < STOP_LIMIT_S
-        process.communicate(timeout=30)
+        _terminated_leaving_no_solver(process, tmp_path)
     finally:
         if process.poll() is None:
             process.kill()
+
+
+def _terminated_leaving_no_solver(process: subprocess.Popen, under: Path) -> None:
+    """SIGTERM to the solve: no solver under ``under`` within the stop limit, and the solve ends."""
+    process.send_signal(signal.SIGTERM)
+    assert seconds_until(lambda: not _solvers_under(under), 30.0) < STOP_LIMIT_S
+    process.communicate(timeout=30)
 
 
 @needs_openfoam
@@ -235,9 +240,7 @@ def test_a_hung_parallel_step_is_stopped_with_every_rank(tmp_path: Path) -> None
         assert took < 15 + STOP_LIMIT_S, f"the hung run's processes lasted {took:.1f} s"
         assert iterations_in(episode / "log.simpleFoam") < 100  # stopped mid-step, not at its end
         assert process.poll() is None  # the solve goes on (the case's own settings)
-        process.send_signal(signal.SIGTERM)
-        assert seconds_until(lambda: not _solvers_under(tmp_path), 30.0) < STOP_LIMIT_S
-        process.communicate(timeout=30)
+        _terminated_leaving_no_solver(process, tmp_path)
     finally:
         if process.poll() is None:
             process.kill()

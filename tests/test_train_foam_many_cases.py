@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pytest
 from foam_marks import needs_openfoam
+from test_train_foam_family import _cli
 
 from jaxsimrl.cli.main import main
 from jaxsimrl.solve import solve_case
@@ -17,14 +18,6 @@ from jaxsimrl.solve import solve_case
 TUTORIALS = Path("/usr/share/doc/openfoam-examples/examples/incompressible/simpleFoam")
 TINY = ["--pool", "2", "--num-envs", "2", "--steps-per-update", "8", "--residual-features", "2",
         "--observe-progress", "--observe-action"]
-
-
-def _cli(capsys, *argv: str) -> tuple[int, str]:
-    try:
-        code = main([str(a) for a in argv])
-    except SystemExit as exit_:
-        code = exit_.code
-    return code, capsys.readouterr().err
 
 
 def test_family_refuses_what_does_not_go_with_it(capsys, tmp_path: Path) -> None:
