@@ -85,11 +85,12 @@ def cell_count(case: Path) -> int:
 
 
 def blockmesh_2d(points: Sequence[tuple[float, float]], blocks: Sequence[tuple[tuple[int, ...], str]],
-                 patches: dict[str, tuple[str, Sequence[tuple[int, int]]]], depth: float = 0.1) -> str:
+                 patches: dict[str, tuple[str, Sequence[tuple[int, int]]]], depth: float = 0.1,
+                 arcs: Sequence[tuple[int, int, tuple[float, float]]] = ()) -> str:
     """The body of a blockMeshDict for a one-cell-thick 2-D domain. ``points``: (x, y); ``blocks``: (the
     four point indices counter-clockwise, "(nx ny 1) simpleGrading (...)"); ``patches``: name -> (type,
     edges), each edge (a, b) taken in the counter-clockwise sense of the domain so that its face points out.
-    Front and back are one empty patch."""
+    Front and back are one empty patch. ``arcs``: (a, b, a point of the arc) edges, on both faces."""
     n = len(points)
     vertices = [f"    ({x:.9g} {y:.9g} 0)" for x, y in points]
     vertices += [f"    ({x:.9g} {y:.9g} {depth:.9g})" for x, y in points]
@@ -99,14 +100,16 @@ def blockmesh_2d(points: Sequence[tuple[float, float]], blocks: Sequence[tuple[t
         a, b, c, d = corners
         hexes.append(f"    hex ({a} {b} {c} {d} {a + n} {b + n} {c + n} {d + n}) {cells}")
         sides += [f"({a} {d} {c} {b})", f"({a + n} {b + n} {c + n} {d + n})"]
+    curves = [f"    arc {a} {b} ({x:.9g} {y:.9g} 0)\n    arc {a + n} {b + n} ({x:.9g} {y:.9g} {depth:.9g})"
+              for a, b, (x, y) in arcs]
     boundary = []
     for name, (kind, edges) in patches.items():
         faces = " ".join(f"({a} {b} {b + n} {a + n})" for a, b in edges)
         boundary.append(f"    {name} {{ type {kind}; faces ({faces}); }}")
     boundary.append(f"    frontAndBack {{ type empty; faces ({' '.join(sides)}); }}")
-    return ("scale 1;\n\nvertices\n(\n"
-            + "\n".join(vertices) + "\n);\n\nblocks\n(\n" + "\n".join(hexes)
-            + "\n);\n\nedges ();\n\nboundary\n(\n" + "\n".join(boundary) + "\n);\n")
+    return ("scale 1;\n\nvertices\n(\n" + "\n".join(vertices) + "\n);\n\nblocks\n(\n" + "\n".join(hexes)
+            + "\n);\n\nedges\n(\n" + "\n".join(curves) + "\n);\n\nboundary\n(\n" + "\n".join(boundary)
+            + "\n);\n")
 
 
 def write_dict(path: Path, body: str, cls: str = "dictionary") -> None:
@@ -115,11 +118,13 @@ def write_dict(path: Path, body: str, cls: str = "dictionary") -> None:
     path.write_text(HEADER.format(cls=cls, obj=path.name) + body)
 
 
-def write_field(case: Path, name: str, internal: str, boundary: dict[str, str]) -> None:
-    """Write 0/<name>: a uniform internal value and one boundary condition per patch (its body)."""
+def write_field(case: Path, name: str, internal: str, boundary: dict[str, str],
+                empty: str = "frontAndBack") -> None:
+    """Write 0/<name>: a uniform internal value, one boundary condition per patch (its body), and the
+    ``empty`` patch of a 2-D case."""
     cls = "volVectorField" if name == "U" else "volScalarField"
     dims = {"U": "[0 1 -1 0 0 0 0]", "p": "[0 2 -2 0 0 0 0]", "k": "[0 2 -2 0 0 0 0]",
             "epsilon": "[0 2 -3 0 0 0 0]", "omega": "[0 0 -1 0 0 0 0]", "nut": "[0 2 -1 0 0 0 0]"}[name]
     patches = "\n".join(f"    {patch} {{ {bc} }}" for patch, bc in boundary.items())
     write_dict(case / "0" / name, f"dimensions {dims};\n\ninternalField uniform {internal};\n\n"
-               f"boundaryField\n{{\n{patches}\n    frontAndBack {{ type empty; }}\n}}\n", cls)
+               f"boundaryField\n{{\n{patches}\n    {empty} {{ type empty; }}\n}}\n", cls)

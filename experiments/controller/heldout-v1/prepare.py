@@ -21,7 +21,15 @@ from collections.abc import Callable
 from pathlib import Path
 
 from foamcase import SIMPLEFOAM, TUTORIALS, copy_tutorial, replace_patch, restore_zero, run, set_entry
-from steady import build_cavity, build_diffuser, build_rib, build_tjunction
+from steady import (
+    build_bend,
+    build_cavity,
+    build_contraction,
+    build_diffuser,
+    build_elbow,
+    build_rib,
+    build_tjunction,
+)
 
 
 def bump_edges() -> str:
@@ -145,7 +153,8 @@ CASES: dict[str, Callable[[Path], None]] = {
     "bump2D": bump2D, "pipeCyclic": pipeCyclic, "rotorDisk": rotorDisk, "simpleCar": simpleCar,
     "squareBend": squareBend, "turbineSiting": turbineSiting, "turbulentFlatPlate": turbulentFlatPlate,
     "cavityRAS": build_cavity, "planarDiffuser": build_diffuser, "channelRib": build_rib,
-    "tJunctionSteady": build_tjunction,
+    "tJunctionSteady": build_tjunction, "elbowRAS": build_elbow,
+    "bend2D": build_bend, "contraction2D": build_contraction,
 }
 
 

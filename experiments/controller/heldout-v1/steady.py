@@ -6,7 +6,10 @@ has, each a steady RAS case with a criterion and factors chosen before any run, 
 - planarDiffuser: an asymmetric planar diffuser (one wall opening at 10 degrees, area ratio 4.7, as
   Buice & Eaton's), kOmegaSST, SIMPLEC;
 - channelRib: a channel with a square rib on one wall (rib 0.2 of the height), kEpsilon, plain SIMPLE;
-- tJunctionSteady: pimpleFoam/RAS/TJunction made steady (its final total pressure), kEpsilon, plain SIMPLE.
+- tJunctionSteady: pimpleFoam/RAS/TJunction made steady (a velocity inlet), kEpsilon, plain SIMPLE;
+- contraction2D: a 2-D planar contraction (nozzle, area ratio 4), kEpsilon, SIMPLEC;
+- bend2D: a 2-D 90-degree channel bend, kOmegaSST, plain SIMPLE;
+- elbowRAS: icoFoam/elbow (2-D elbow with a side inlet) made turbulent and steady, kEpsilon, plain SIMPLE.
 """
 
 from __future__ import annotations
@@ -85,9 +88,12 @@ def build_cavity(case: Path) -> None:
     run(case, "blockMesh")
 
 
-def inlet_turbulence(case: Path, model: str, speed: float, length: float, walls: list[str]) -> None:
-    """k and epsilon/omega (5 % intensity, mixing length ``length``) at the inlet, wall functions on
-    ``walls``, zero gradient at the outlet; nut from the model."""
+def inlet_turbulence(case: Path, model: str, speed: float, length: float, walls: list[str],
+                     patches: tuple[list[str], list[str], str] = (["inlet"], ["outlet"], "frontAndBack"),
+                     ) -> None:
+    """k and epsilon/omega (5 % of ``speed``, mixing length ``length``) at the inlets, wall functions on
+    ``walls``, inletOutlet at the outlets; nut from the model. ``patches``: inlets, outlets, the empty one."""
+    inlets, outlets, empty = patches
     k = 1.5 * (0.05 * speed) ** 2
     wall_bc = {"k": "type kqRWallFunction; value uniform {v};",
                "nut": "type nutkWallFunction; value uniform 0;",
@@ -97,19 +103,22 @@ def inlet_turbulence(case: Path, model: str, speed: float, length: float, walls:
     values = {"k": k, "epsilon": 0.09**0.75 * k**1.5 / length, "omega": math.sqrt(k) / (0.09**0.25 * length)}
     for name in ("k", second):
         value = f"{values[name]:.6g}"
-        bcs = {"inlet": f"type fixedValue; value uniform {value};",
-               "outlet": f"type inletOutlet; inletValue uniform {value}; value uniform {value};"}
+        bcs = {inlet: f"type fixedValue; value uniform {value};" for inlet in inlets}
+        outflow = f"type inletOutlet; inletValue uniform {value}; value uniform {value};"
+        bcs |= dict.fromkeys(outlets, outflow)
         bcs |= {wall: wall_bc[name].format(v=value) for wall in walls}
-        write_field(case, name, value, bcs)
-    nut = {"inlet": "type calculated; value uniform 0;", "outlet": "type calculated; value uniform 0;"}
-    write_field(case, "nut", "0", nut | {wall: wall_bc["nut"] for wall in walls})
+        write_field(case, name, value, bcs, empty)
+    nut = {patch: "type calculated; value uniform 0;" for patch in inlets + outlets}
+    write_field(case, "nut", "0", nut | {wall: wall_bc["nut"] for wall in walls}, empty)
 
 
-def channel_fields(case: Path, model: str, speed: float, length: float, walls: list[str]) -> None:
-    """U (uniform ``speed`` in x at the inlet, noSlip walls) and p (0 at the outlet), and the turbulence."""
+def channel_fields(case: Path, model: str, speed: float, length: float, walls: list[str],
+                   start: str | None = None) -> None:
+    """U (uniform ``speed`` in x at the inlet, noSlip walls; inside ``start``, else the inlet's) and p (0
+    at the outlet), and the turbulence."""
     u = {"inlet": f"type fixedValue; value uniform ({speed:g} 0 0);",
          "outlet": "type inletOutlet; inletValue uniform (0 0 0); value uniform (0 0 0);"}
-    write_field(case, "U", f"({speed:g} 0 0)", u | {wall: "type noSlip;" for wall in walls})
+    write_field(case, "U", start or f"({speed:g} 0 0)", u | {wall: "type noSlip;" for wall in walls})
     p = {"inlet": "type zeroGradient;", "outlet": "type fixedValue; value uniform 0;"}
     write_field(case, "p", "0", p | {wall: "type zeroGradient;" for wall in walls})
     inlet_turbulence(case, model, speed, length, walls)
@@ -133,6 +142,23 @@ def build_diffuser(case: Path) -> None:
     run(case, "blockMesh")
 
 
+def build_contraction(case: Path) -> None:
+    """A 2-D planar contraction (nozzle): a channel of height 4 narrowing to 1 over 4 with straight walls
+    (20.6 degrees each side), 4 upstream, 8 downstream. U 0.25 in (1 out), nu 1e-5 (Re 1e5 at the outlet),
+    kEpsilon with wall functions, SIMPLEC. 4 800 cells, clustered towards both walls."""
+    points = [(-4, -2), (0, -2), (4, -0.5), (12, -0.5), (12, 0.5), (4, 0.5), (0, 2), (-4, 2)]
+    across = "((0.5 0.5 4) (0.5 0.5 0.25))"
+    blocks = [((0, 1, 6, 7), f"(20 40 1) simpleGrading (1 {across} 1)"),
+              ((1, 2, 5, 6), f"(40 40 1) simpleGrading (1 {across} 1)"),
+              ((2, 3, 4, 5), f"(60 40 1) simpleGrading (4 {across} 1)")]
+    patches = {"inlet": ("patch", [(7, 0)]), "outlet": ("patch", [(3, 4)]),
+               "lowerWall": ("wall", [(0, 1), (1, 2), (2, 3)]),
+               "upperWall": ("wall", [(4, 5), (5, 6), (6, 7)])}
+    write_case(case, blockmesh_2d(points, blocks, patches), "kEpsilon", 1e-5, consistent=True)
+    channel_fields(case, "kEpsilon", 0.25, 0.07 * 4, ["lowerWall", "upperWall"])
+    run(case, "blockMesh")
+
+
 def build_rib(case: Path) -> None:
     """Channel of height 1 with a square rib (0.2 x 0.2) on the lower wall: 3 upstream, 8 downstream.
     U 1, nu 1e-5 (Re 1e5 on the channel height), kEpsilon with wall functions, plain SIMPLE. 5 900 cells."""
@@ -152,6 +178,25 @@ def build_rib(case: Path) -> None:
     run(case, "blockMesh")
 
 
+def build_bend(case: Path) -> None:
+    """A 2-D 90-degree bend of a channel of width 1 (inner radius 1, outer 2), 5 straight upstream, 10
+    downstream. U 1, nu 1e-5 (Re 1e5 on the width), kOmegaSST with wall functions, plain SIMPLE. 3 750
+    cells, clustered towards both walls. Starts from rest: the inlet's velocity everywhere runs into the
+    walls of the outlet leg (its first build did, and crashed at iteration 15)."""
+    points = [(-5, -2), (0, -2), (0, -1), (-5, -1), (2, 0), (1, 0), (2, 10), (1, 10)]
+    across = "((0.5 0.5 4) (0.5 0.5 0.25))"
+    blocks = [((0, 1, 2, 3), f"(25 30 1) simpleGrading (0.5 {across} 1)"),
+              ((1, 4, 5, 2), f"(40 30 1) simpleGrading (1 {across} 1)"),
+              ((5, 4, 6, 7), f"(30 60 1) simpleGrading ({across} 4 1)")]
+    arcs = [(1, 4, (2 * math.sqrt(0.5), -2 * math.sqrt(0.5))), (2, 5, (math.sqrt(0.5), -math.sqrt(0.5)))]
+    patches = {"inlet": ("patch", [(3, 0)]), "outlet": ("patch", [(6, 7)]),
+               "outerWall": ("wall", [(0, 1), (1, 4), (4, 6)]),
+               "innerWall": ("wall", [(7, 5), (5, 2), (2, 3)])}
+    write_case(case, blockmesh_2d(points, blocks, patches, arcs=arcs), "kOmegaSST", 1e-5, consistent=False)
+    channel_fields(case, "kOmegaSST", 1.0, 0.07, ["outerWall", "innerWall"], start="(0 0 0)")
+    run(case, "blockMesh")
+
+
 def write_case(case: Path, mesh: str, model: str, nu: float, consistent: bool) -> None:
     """A fresh case directory: blockMeshDict, the steady system files (endTime 3000), the physics."""
     if case.exists():
@@ -162,12 +207,27 @@ def write_case(case: Path, mesh: str, model: str, nu: float, consistent: bool) -
 
 
 def build_tjunction(case: Path) -> None:
-    """pimpleFoam/RAS/TJunction (3-D T-junction, kEpsilon) made steady: simpleFoam, steady schemes, plain
-    SIMPLE. Edits: the inlet's total pressure ramp (10 -> 40 in 1 s) held at its final 40; the passive
-    scalar (0/s and its function object) and the probes dropped (no part of the flow)."""
+    """pimpleFoam/RAS/TJunction (3-D T-junction of square ducts, kEpsilon) made steady: simpleFoam, steady
+    schemes, plain SIMPLE. Edits: the inlet driven by a velocity (5 m/s, Re 1e4 on the 0.02 m duct)
+    instead of the total-pressure ramp (held at its final 40 m2/s2, a steady run from rest crashed at
+    iteration 10; potentialFoam cannot start a case no boundary gives a velocity); the outlets keep their
+    pressures (10 and 0); the passive scalar (0/s and its function object) and the probes dropped."""
     copy_tutorial(TUTORIALS / "incompressible" / "pimpleFoam" / "RAS" / "TJunction", case)
     (case / "0" / "s").unlink()
     write_system(case, consistent=False, end_time=3000)
-    replace_patch(case / "0" / "p", "inlet",
-                  "type totalPressure; rho none; psi none; gamma 1; p0 uniform 40; value uniform 40;")
+    replace_patch(case / "0" / "p", "inlet", "type zeroGradient;")
+    replace_patch(case / "0" / "U", "inlet", "type fixedValue; value uniform (5 0 0);")
     run(case, "blockMesh")
+
+
+def build_elbow(case: Path) -> None:
+    """icoFoam/elbow (2-D elbow, Fluent mesh, a main and a side inlet) made a steady RAS case: simpleFoam,
+    kEpsilon with wall functions, nu 1.6e-4 instead of 0.01 (Re 1e5 on the 16 m main inlet instead of 1600:
+    turbulent), plain SIMPLE. Allrun: fluentMeshToFoam elbow.msh. Its inlet speeds (1 and 3 m/s) kept."""
+    copy_tutorial(TUTORIALS / "incompressible" / "icoFoam" / "elbow", case)
+    write_system(case, consistent=False, end_time=3000)
+    write_physics(case, "kEpsilon", 1.6e-4)
+    run(case, "fluentMeshToFoam", "elbow.msh")
+    # k and epsilon from the main inlet (1 m/s, 16 wide): the side jet (3 m/s, 4 wide) gets the same
+    inlet_turbulence(case, "kEpsilon", 1.0, 0.07 * 16, ["wall-4", "wall-8"],
+                     (["velocity-inlet-5", "velocity-inlet-6"], ["pressure-outlet-7"], "frontAndBackPlanes"))
