@@ -61,12 +61,13 @@ NOTES = {
 
 #: Tutorials not built at all: name -> why.
 NOT_BUILT = {
-    "windAroundBuildings": "185 237 cells (snappyHexMesh, measured); 1.3 s an iteration here, its 400 "
-                           "iterations ~9 min a run: over the ~3 min budget",
+    "windAroundBuildings": "185 237 cells (snappyHexMesh, measured); 1.3 s an iteration here (measured on 6 "
+                           "iterations), its 400 iterations ~9 min a run: over the ~3 min budget",
     "mixerVessel2D": "its blockMeshDict is made by m4, which is not installed (an 800-line macro file); "
                      "it also has no residualControl",
-    "motorBike": "see motorBike in heldout.json's measured note; 3-D snappyHexMesh case of the order of "
-                 "350 000 cells (castellated level 5-6 on the bike), 500 iterations: far over the budget",
+    "motorBike": "325 703 cells after castellation alone (measured: serial snappyHexMesh without snap and "
+                 "layers, 44 s; its layer adds more), 1.8x windAroundBuildings' mesh: ~2.3 s an iteration "
+                 "here, its 500 iterations ~20 min a run, far over the budget",
 }
 
 
