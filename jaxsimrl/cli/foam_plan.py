@@ -179,11 +179,15 @@ def _foam_template(args: argparse.Namespace, extra: dict[str, Any]) -> Any:
     from foam_bridge.config import FoamEnvConfig
 
     values = {**FoamEnvConfig().to_json(), **extra, "work_dir": None}
-    flags = {"max_iterations": args.max_iterations, "reward": args.reward,
-             "confirm_alpha_u": args.confirm_alpha_u,
-             **{name: getattr(args, name) for name in OBSERVATION_FLAGS}}
-    values.update({name: value for name, value in flags.items() if value is not None})
+    values.update({name: value for name, value in _shared_flags(args).items() if value is not None})
     return FoamEnvConfig.from_json(values)
+
+
+def _shared_flags(args: argparse.Namespace) -> dict[str, Any]:
+    """FoamEnvConfig fields from the flags a single case and a family take alike (None: not given)."""
+    return {"max_iterations": args.max_iterations, "reward": args.reward,
+            "confirm_alpha_u": args.confirm_alpha_u,
+            **{name: getattr(args, name) for name in OBSERVATION_FLAGS}}
 
 
 def _family_setup(family: dict[str, Any]) -> dict[str, Any]:
@@ -299,9 +303,7 @@ def _foam_config(args: argparse.Namespace, extra: dict[str, Any]) -> Any:
                          f"meshes are a different control problem (many episodes diverge)")
     values = {**FoamEnvConfig().to_json(), **extra}
     flags = {"mesh_scale": args.mesh_scale, "step_height": _step_height(args.step_height),
-             "max_iterations": args.max_iterations, "case_dir": args.case, "reward": args.reward,
-             "confirm_alpha_u": args.confirm_alpha_u, "relax_k_omega": args.relax_k_omega,
-             **{name: getattr(args, name) for name in OBSERVATION_FLAGS}}
+             "case_dir": args.case, "relax_k_omega": args.relax_k_omega, **_shared_flags(args)}
     values.update({name: value for name, value in flags.items() if value is not None})
     if values.get("case_dir") is None:  # the built-in case: its paper defaults, written out in config.json
         for name, value in PAPER_CASE.items():

@@ -164,7 +164,7 @@ def _solve(case: Path, out: Path, policy: Any, compare: bool, constant: Sequence
     confirm = check_factor(settings) if confirm == OWN_CHECK else confirm
     ranks, keep_decomposed = parallel_run
     cfg, checked = solve_config(case, trained, out / WORK_DIR, budget, confirm, *env, residual=residual,
-                                start_time=start)
+                                start_time=start, settings=settings)
     cfg = dataclasses.replace(cfg, ranks=ranks).validate()
     phases["case_check_s"], mark = time.monotonic() - mark, time.monotonic()
     own = Own(settings.flat, None if residual is None else dict(cfg.convergence), start, ranks)

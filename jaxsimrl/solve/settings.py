@@ -166,15 +166,16 @@ def _budget(control: dict[str, Any]) -> int | None:
 def solve_config(case: Path, policy_cfg: FoamEnvConfig, work: Path, max_iterations: int,
                  confirm_alpha_u: float | None, action_box: tuple[Sequence[float], Sequence[float]] | None,
                  step_timeout_s: float, inlet_patch: str | None = None,
-                 residual: Residual | str | None = None,
-                 start_time: int = 0) -> tuple[FoamEnvConfig, CheckedCase]:
+                 residual: Residual | str | None = None, start_time: int = 0,
+                 settings: CaseSettings | None = None) -> tuple[FoamEnvConfig, CheckedCase]:
     """The env config of the controlled run (see the module docstring) and the case as its check built
     it (``work/checked`` and its CaseInfo: the controlled run's env starts from it instead of building
     and dry-running the case again); one-line CaseError/ValueError if the bridge cannot drive the case.
     ``residual``: the criterion instead of the case's residualControl (jaxsimrl.solve.criterion);
     ``start_time``: the case's time directory the run starts from (:func:`start_of`); ``inlet_patch``: the
     patch whose flow the controller observes (None: the case's ``inlet`` if it has one, else no inlet,
-    :func:`inlet_of`).
+    :func:`inlet_of`); ``settings``: the case's own (:func:`read_case_settings`), read here if a policy
+    that needs them (its algorithm observed, its action around the case's own factors) is not given them.
 
     Starting from the check's build is safe: the check builds exactly what the env would (the same
     copy, mesh and dry run, foam_bridge.base_case.check_case), from this config before the case's own
@@ -190,8 +191,11 @@ def solve_config(case: Path, policy_cfg: FoamEnvConfig, work: Path, max_iteratio
     copied = {name: getattr(policy_cfg, name) for name in POLICY_FIELDS if hasattr(policy_cfg, name)}
     if getattr(policy_cfg, "relax_k_omega", None) == TURBULENCE_ACTION:
         copied["relax_k_omega"] = TURBULENCE_ACTION
+    pivoted = getattr(policy_cfg, "action_pivot", None) is not None  # it acts around the case's own factors
+    if settings is None and (copied.get("observe_algorithm") or pivoted):
+        settings = read_case_settings(case, start_time)
     if copied.get("observe_algorithm"):  # it observes which one: the case's own, written out as it is
-        copied["simple_variant"] = read_case_settings(case, start_time).variant
+        copied["simple_variant"] = settings.variant
     interval = min(copied.get("interval", 100), max_iterations)
     inlet_patch = inlet_of(case, inlet_patch, find_openfoam(policy_cfg.openfoam_path))
     cfg = FoamEnvConfig(**{**copied, "interval": interval}, case_dir=case, max_iterations=max_iterations,
@@ -212,8 +216,8 @@ def solve_config(case: Path, policy_cfg: FoamEnvConfig, work: Path, max_iteratio
     if residual is not None:
         criterion = resolve(residual, solved_field_names(info.solved_fields), case)
         cfg = dataclasses.replace(cfg, convergence=criterion).validate()
-    if getattr(policy_cfg, "action_pivot", None) is not None:  # it acts around each case's own factors
-        cfg = around_own(cfg, read_case_settings(case, start_time)).validate()
+    if pivoted:
+        cfg = around_own(cfg, settings).validate()
     mapping, _ = observed_mapping(policy_cfg, info.solved_fields)  # no mapping: not_applicable says why
     if mapping is not None:
         cfg = dataclasses.replace(cfg, observed_fields=tuple(mapping.values())).validate()
