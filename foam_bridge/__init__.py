@@ -52,6 +52,7 @@ _HOMES: dict[str, tuple[str, ...]] = {
     "family": ("FamilyCase", "VARIATION_NAMES", "Variation", "build_family", "read_manifest",
                "sample_variations"),
     "openfoam": ("find_openfoam",),
+    "logparse": ("criterion_distance",),
     "errors": ("CaseError", "ClusterError", "OpenFOAMNotFoundError", "PoolLostError", "SolverFailure"),
 }
 _EXPORTS = {name: f"foam_bridge.{module}" for module, names in _HOMES.items() for name in names}
@@ -63,8 +64,8 @@ __all__ = [
     "VARIATION_NAMES", "BatchedFoamEnv", "CaseError", "ClusterError", "EpisodeJob", "EpisodeRun",
     "FamilyCase", "FoamCaseEnv", "FoamEnvConfig", "GridCell", "OpenFOAMNotFoundError", "PoolLostError",
     "RelaxationControlEnv", "RelaxationControlVecEnv", "SolverFailure", "Variation", "best_cell",
-    "build_family", "case_defaults", "export_case", "failure_reward", "find_openfoam", "grid_config",
-    "make_backend", "plot_grid", "read_grid_csv", "read_manifest", "run_episodes", "run_grid",
+    "build_family", "case_defaults", "criterion_distance", "export_case", "failure_reward", "find_openfoam",
+    "grid_config", "make_backend", "plot_grid", "read_grid_csv", "read_manifest", "run_episodes", "run_grid",
     "sample_variations", "write_grid_csv",
 ]
 
@@ -131,5 +132,6 @@ if TYPE_CHECKING:  # what type checkers and editors see; at run time __getattr__
         write_grid_csv,
     )
     from foam_bridge.gym_envs import RelaxationControlEnv, RelaxationControlVecEnv
+    from foam_bridge.logparse import criterion_distance
     from foam_bridge.openfoam import find_openfoam
     from foam_bridge.user_case import case_defaults

@@ -76,7 +76,7 @@ from foam_bridge.config import (
     work_root,
 )
 from foam_bridge.confirm import confirm, meets, step_turbulence_factor
-from foam_bridge.logparse import LogParser, field_residual
+from foam_bridge.logparse import LogParser, criterion_distance, field_residual
 from foam_bridge.openfoam import find_openfoam
 from foam_bridge.records import EpisodeRecord
 from foam_bridge.solver import DIVERGED, EXITED, HUNG, MISSED, PAUSED, FoamSolver
@@ -210,7 +210,7 @@ class FoamCaseEnv:
                          "return": 0.0, "steps": 0, "solver_idle_s": 0.0, "started": time.monotonic()}
         if self.cfg.confirm_alpha_u is not None:
             self._episode["confirmations"] = []
-        self._done = False
+        self._done = self._frozen = False
         # the scale-free state is relative to this episode's inlet (state_scale if it has none)
         self._scale = inlet if self.cfg.scale_free_state and inlet > 0 else self.cfg.state_scale
         self._state = (inlet + cells) / self._scale
@@ -223,6 +223,8 @@ class FoamCaseEnv:
         if self._done:
             raise RuntimeError("step() on a finished episode: call reset() first")
         alpha = factors_of(self.cfg, _factors(action, self.cfg.action_size))
+        if self._frozen:  # within freeze_decades of the criterion: the factors in force hold
+            alpha = self._factors
         self._episode["actions"].append([float(a) for a in alpha])
         self._factors = alpha
         alpha_t = float(alpha[2]) if len(alpha) == 3 else None
@@ -242,6 +244,7 @@ class FoamCaseEnv:
         else:
             reward = -(self._cost - spent) * self.cfg.reward_scale
         residuals = self._residuals()
+        self._frozen = self._frozen or self._near_criterion(residuals)
         self._update_observation(outcome, residuals)
         self._episode["return"] += reward
         self._episode["steps"] += 1
@@ -433,6 +436,11 @@ class FoamCaseEnv:
         found = {name: field_residual(self._parser.residuals, name) for name in self.cfg.convergence}
         return {name: float(value) for name, value in found.items() if value is not None}
 
+    def _near_criterion(self, residuals: dict[str, float]) -> bool:
+        """Whether the run is within cfg.freeze_decades of its criterion (False when it is None)."""
+        limit = self.cfg.freeze_decades
+        return limit is not None and criterion_distance(residuals, self.cfg.convergence) <= limit
+
     def _update_observation(self, outcome: str, residuals: dict[str, float]) -> None:
         if self.cfg.residual_features:
             # the observed fields, which need not be the criterion's (FoamEnvConfig.observed_fields): the
@@ -464,6 +472,7 @@ class FoamCaseEnv:
 
     def _info(self, outcome: str, cause: str, residuals: dict[str, float]) -> dict[str, Any]:
         return {"iterations": self._iterations, "residuals": residuals, "outcome": outcome,
+                "factors": [float(a) for a in self._factors],
                 "cause": cause, "inlet_velocity": self._episode["inlet_velocity"],
                 "step_height": self._episode["step_height"]}
 

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -65,6 +66,14 @@ def field_residual(residuals: dict[str, float], name: str) -> float | None:
     if not parts:
         return None
     return max(parts, key=lambda v: v if math.isfinite(v) else math.inf)
+
+
+def criterion_distance(residuals: Mapping[str, float], criterion: Mapping[str, float]) -> float:
+    """Decades above ``criterion`` ({field: threshold}) of the worst field in ``residuals`` (<= 0: every
+    field meets it; a non-finite residual is infinitely far); NaN if no criterion field is there."""
+    found = [math.log10(max(residuals[name], 1e-300) / threshold) if math.isfinite(residuals[name])
+             else math.inf for name, threshold in criterion.items() if name in residuals]
+    return max(found) if found else math.nan
 
 
 def solved_field_names(solved: tuple[str, ...]) -> list[str]:

@@ -15,6 +15,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from foam_bridge import criterion_distance
 from foam_bridge.config import FoamEnvConfig
 from foam_bridge.env import factors_of
 from jaxsimrl.solve.watchdog import Watchdog, WatchdogSettings
@@ -43,16 +44,29 @@ class Actor(Protocol):
 
 class LearnedActor:
     """A trained policy's deterministic action on the observation, its inlet term scaled by ``scale``
-    (jaxsimrl.solve.settings.observation_factor); its recurrent state kept from step to step."""
+    (jaxsimrl.solve.settings.observation_factor); its recurrent state kept from step to step. A policy
+    trained with FoamEnvConfig.freeze_decades keeps its last action once the run is within that many
+    decades of ``criterion``, as its training env did (here rather than in the env: the watchdog's
+    fallback must still reach the solver)."""
 
-    def __init__(self, policy: Any, scale: float) -> None:
+    def __init__(self, policy: Any, scale: float, freeze_decades: float | None = None,
+                 criterion: Mapping[str, float] | None = None) -> None:
         self.policy, self.scale, self.state = policy, scale, None
+        self.freeze_decades, self.criterion = freeze_decades, dict(criterion or {})
+        self.last: list[float] | None = None
+        self.frozen = False
 
     def act(self, obs: Any, residuals: Mapping[str, float] | None) -> list[float]:
+        near = residuals is not None and self.freeze_decades is not None and (
+            criterion_distance(residuals, self.criterion) <= self.freeze_decades)
+        self.frozen = self.frozen or near
+        if self.frozen and self.last is not None:  # for good, as in training
+            return list(self.last)
         seen = np.array(obs, dtype=np.float32)
         seen[0] *= self.scale
         action, self.state = self.policy.act(seen, self.state, deterministic=True)
-        return [float(a) for a in np.asarray(action).reshape(-1)]
+        self.last = [float(a) for a in np.asarray(action).reshape(-1)]
+        return list(self.last)
 
 
 def _residual_text(residuals: Mapping[str, float], criterion: Mapping[str, float]) -> str:
@@ -109,6 +123,8 @@ def _loop(backend: Any, request: Any, cfg: FoamEnvConfig, actor: Actor, fallback
             run.steps.append({**step, "outcome": "crashed"})
             return
         obs, _, terminated, truncated, info = reply.value
+        factors = info.get("factors", factors)  # the env's own word (FoamEnvConfig.freeze_decades holds)
+        step["action"] = factors
         run.iterations, run.outcome = int(info["iterations"]), info["outcome"]
         run.cause, residuals = info.get("cause", ""), info["residuals"]
         run.steps.append({**step, "to_iteration": run.iterations, "residuals": residuals,

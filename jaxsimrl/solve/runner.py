@@ -240,7 +240,8 @@ def _controlled(cfg: Any, trained: Any, settings: Any, controller: Any, watchdog
 
     def actor(speed: float) -> LearnedActor:
         loaded = controller if isinstance(controller, Controller) else controller.result()
-        return LearnedActor(loaded.policy, observation_factor(trained, speed))
+        return LearnedActor(loaded.policy, observation_factor(trained, speed),
+                            getattr(trained, "freeze_decades", None), cfg.convergence)
 
     return drive(cfg, actor, fallback, watchdog, say, checked, on_step)
 

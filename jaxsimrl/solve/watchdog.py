@@ -30,6 +30,8 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
+from foam_bridge import criterion_distance
+
 
 @dataclass(frozen=True)
 class WatchdogSettings:
@@ -53,9 +55,7 @@ class Watchdog:
 
     def distance(self, residuals: Mapping[str, float]) -> float:
         """Decades above the criterion of the worst field (<= 0: every field meets it); NaN if none."""
-        found = [math.log10(max(residuals[name], 1e-300) / threshold) if math.isfinite(residuals[name])
-                 else math.inf for name, threshold in self.criterion.items() if name in residuals]
-        return max(found) if found else math.nan
+        return criterion_distance(residuals, self.criterion)
 
     def check(self, residuals: Mapping[str, float]) -> str | None:
         """The reason to fall back now (only the first time), else None."""
