@@ -185,7 +185,7 @@ class FoamEnvConfig:
             factors in force whatever the action (None: never). A change of alpha_u there changes the
             discrete problem the solver iterates on and the run re-converges: airFoil2D's own factors
             jittered by +-0.03 share every 50 iterations took 569 iterations against 292
-            (experiments/controller/family-v3-setup/jitter.json); jaxsimrl.solve.rules freezes at 1.
+            (experiments/controller/family-v3-setup/jitter.json); jaxsimrl.apps.foam.solve.rules freezes at 1.
         reward: the cost whose increase is the negative reward of a step, one of REWARDS:
             "iterations" (default, the paper's: SIMPLE iterations K), "linear-iterations" (the inner
             iterations of every linear solve, all fields: what one SIMPLE iteration costs changes with

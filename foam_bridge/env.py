@@ -125,8 +125,9 @@ class FoamCaseEnv:
 
     ``step(action) -> (obs, reward, terminated, truncated, info)``; ``info`` has "iterations" (K),
     "residuals" ({field: latest initial residual}), "outcome" (one of OUTCOMES), "cause" (failure text,
-    CASE_STOP and the function object's name, or ""), "inlet_velocity", and "episode" (the episode
-    record) on the step that ended the episode.
+    CASE_STOP and the function object's name, or ""), "inlet_velocity", "factors" (those in force
+    over the step: the action's, or the held ones once ``freeze_decades`` froze them), and "episode"
+    (the episode record) on the step that ended the episode.
     ``terminated`` is True on every episode end, the ``max_iterations`` cap included; ``truncated`` is
     always False (the env has no time limit). Stepping a finished episode raises ``RuntimeError`` (no
     auto-reset here).

@@ -323,7 +323,7 @@ def test_train_foam_refuses_an_unreachable_address_in_one_line(capsys, tmp_path)
 
 
 def test_episodes_csv_records_the_node_and_reads_older_files_without_it(tmp_path):
-    from jaxsimrl.envs.foam_episodes import EpisodeLog
+    from jaxsimrl.apps.foam.episodes import EpisodeLog
 
     path = tmp_path / "episodes.csv"
     log = EpisodeLog(path)
@@ -389,7 +389,7 @@ def test_train_foam_goes_on_after_a_node_loss_and_a_killed_driver_loses_no_episo
     Asynchronous (2 envs per worker): the lost node's envs lose one or two episodes (one may be between
     episodes), and a resume replays each env's state (4 of them), as tests/test_async_trainer.py's."""
     from foam_bridge.backends.reaper import processes_under
-    from jaxsimrl.envs.foam_episodes import EpisodeLog
+    from jaxsimrl.apps.foam.episodes import EpisodeLog
 
     run, tmp = tmp_path / "run", tmp_path / "tmp"
     tmp.mkdir()
@@ -471,7 +471,7 @@ def _check_resumed_after_a_kill(processes: list[subprocess.Popen], tmp: Path, ru
     from test_train_foam import _check_records
 
     from foam_bridge.backends.reaper import processes_under
-    from jaxsimrl.envs.foam_episodes import EpisodeLog
+    from jaxsimrl.apps.foam.episodes import EpisodeLog
     from jaxsimrl.runs.checkpoint import Checkpoints
 
     done = _checkpoints(run)[-1]

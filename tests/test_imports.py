@@ -19,7 +19,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("jaxsimrl", "foam_bridge")
+PACKAGES = ("jaxsimrl", "foam_bridge", "atomicfile")
 
 
 def modules() -> dict[str, Path]:
@@ -88,9 +88,12 @@ def cycles(edges: dict[str, set[str]]) -> list[list[str]]:
 
 
 def layer(name: str) -> str:
-    """jaxsimrl's subpackage of a module (jaxsimrl.policy.loading -> jaxsimrl.policy); foam_bridge is one."""
+    """jaxsimrl's subpackage of a module (jaxsimrl.policy.loading -> jaxsimrl.policy), an application
+    (jaxsimrl.apps.foam.solve.drive -> jaxsimrl.apps.foam); foam_bridge is one."""
     parts = name.split(".")
-    return "foam_bridge" if parts[0] == "foam_bridge" else ".".join(parts[:2])
+    if parts[0] == "foam_bridge":
+        return "foam_bridge"
+    return ".".join(parts[:3] if parts[1:2] == ["apps"] else parts[:2])
 
 
 def test_the_graph_is_read_from_the_source():
@@ -116,8 +119,8 @@ def test_the_subpackages_are_layers():
 def test_the_trained_policy_sits_below_evaluation_introspection_and_solve():
     edges = graph()
     below = {t for name, targets in edges.items() if layer(name) == "jaxsimrl.policy" for t in targets}
-    assert not {layer(t) for t in below} & {"jaxsimrl.evaluation", "jaxsimrl.introspect", "jaxsimrl.solve",
-                                            "jaxsimrl.cli"}
+    above = {"jaxsimrl.evaluation", "jaxsimrl.introspect", "jaxsimrl.apps.foam", "jaxsimrl.cli"}
+    assert not {layer(t) for t in below} & above
 
 
 @pytest.mark.slow  # subprocesses that import JAX
@@ -128,10 +131,10 @@ def test_loading_and_acting_import_no_plotting(tmp_path):
     import subprocess
     import sys
 
-    from jaxsimrl.solve.controller import DEFAULT_CONTROLLER
+    from jaxsimrl.apps.foam.solve.controller import DEFAULT_CONTROLLER
 
     script = ("import sys, numpy as np, jaxsimrl, jaxsimrl.policy\n"
-              "from jaxsimrl.solve.controller import DEFAULT_CONTROLLER\n"
+              "from jaxsimrl.apps.foam.solve.controller import DEFAULT_CONTROLLER\n"
               "for load in (jaxsimrl.load_policy, jaxsimrl.policy.load_policy):\n"
               "    policy = load(DEFAULT_CONTROLLER)\n"
               "    print(type(policy).__name__, policy.act(np.ones(policy.obs_dim))[0].shape)\n"

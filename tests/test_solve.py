@@ -29,16 +29,16 @@ from foam_bridge.config import FoamEnvConfig
 from foam_bridge.logparse import LogParser
 from foam_bridge.openfoam import BRIDGE_MARK, find_openfoam
 from jaxsimrl import load_policy
-from jaxsimrl.solve import DEFAULT_CONTROLLER, Controller, SolveReport, solve_case
-from jaxsimrl.solve.agreement import compare_results, summary_line, tolerances
-from jaxsimrl.solve.controller import policy_env_config
-from jaxsimrl.solve.criterion import parse_residual, resolve
-from jaxsimrl.solve.own import OwnProcess
-from jaxsimrl.solve.settings import solve_config
-from jaxsimrl.solve.watchdog import Watchdog
+from jaxsimrl.apps.foam.solve import DEFAULT_CONTROLLER, Controller, SolveReport, solve_case
+from jaxsimrl.apps.foam.solve.agreement import compare_results, summary_line, tolerances
+from jaxsimrl.apps.foam.solve.controller import policy_env_config
+from jaxsimrl.apps.foam.solve.criterion import parse_residual, resolve
+from jaxsimrl.apps.foam.solve.own import OwnProcess
+from jaxsimrl.apps.foam.solve.settings import solve_config
+from jaxsimrl.apps.foam.solve.watchdog import Watchdog
 
 TUTORIALS = Path("/usr/share/doc/openfoam-examples/examples/incompressible/simpleFoam")
-#: What the shipped controller says of itself (jaxsimrl/controllers/default/provenance.json).
+#: What the shipped controller says of itself (jaxsimrl/apps/foam/controllers/default/provenance.json).
 SHIPPED = json.loads((DEFAULT_CONTROLLER / "provenance.json").read_text())
 PYTHON = sys.executable
 pytestmark = OPENFOAM

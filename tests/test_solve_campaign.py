@@ -1,4 +1,4 @@
-"""``jaxsimrl solve CASE [CASE ...] --pool N``: a campaign of cases (jaxsimrl.solve.campaign).
+"""``jaxsimrl solve CASE [CASE ...] --pool N``: a campaign of cases (jaxsimrl.apps.foam.solve.campaign).
 
 The real runs are campaigns of 6 coarse variants of the built-in step (tests/test_solve.py's
 ``_coarse_step`` at three step heights, two of them sharing a directory name), solved by the residual rule
@@ -28,8 +28,15 @@ from foam_bridge import case as foam_case
 from foam_bridge.backends import Request
 from foam_bridge.backends.base import _batch_deadline_s, start_deadline_s
 from foam_bridge.backends.reaper import processes_under
-from jaxsimrl.solve.campaign import CASE_TIMEOUT_S, CampaignSettings, find_cases, plan_campaign
-from jaxsimrl.solve.campaign_table import FAILED, failed_row, finished_line, row_of, write_plot, write_table
+from jaxsimrl.apps.foam.solve.campaign import CASE_TIMEOUT_S, CampaignSettings, find_cases, plan_campaign
+from jaxsimrl.apps.foam.solve.campaign_table import (
+    FAILED,
+    failed_row,
+    finished_line,
+    row_of,
+    write_plot,
+    write_table,
+)
 
 FOAM_ENV = {**os.environ, "WM_PROJECT_DIR": os.environ.get("WM_PROJECT_DIR", "/usr/share/openfoam")}
 #: The rule and the pool every real campaign here runs with.
