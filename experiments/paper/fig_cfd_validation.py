@@ -23,6 +23,9 @@ behind it), as one reports a step flow; the experiment and TMR references belong
     python experiments/paper/fig_cfd_validation.py                       # full mesh, 2000 iterations
     python experiments/paper/fig_cfd_validation.py --step-height 0.0254  # the 2h geometry
     python experiments/paper/fig_cfd_validation.py --mesh-scale 0.4 --iterations 1000 --out /tmp/v
+
+~500 lines because the paper's figures are one script each (experiments/paper/README.md): this one runs
+the case, post-processes it and draws its three figures.
 """
 
 from __future__ import annotations
