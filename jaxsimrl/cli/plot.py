@@ -12,6 +12,8 @@ import sys
 from pathlib import Path
 
 from jaxsimrl.cli.errors import UsageError
+from jaxsimrl.evaluation.curves import plot_training_curves, read_episode_iterations, read_rows
+from jaxsimrl.plugin import application
 
 PLOT_FILE = "training_curves.png"
 EPISODES_FILE = "episodes.csv"
@@ -33,7 +35,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run_plot(args: argparse.Namespace) -> int:
     """Entry point of ``jaxsimrl plot``."""
-    from jaxsimrl.evaluation.curves import plot_training_curves, read_episode_iterations, read_rows
 
     run = Path(args.run_dir)
     out = Path(args.out) if args.out else run / PLOT_FILE
@@ -57,7 +58,6 @@ def _failed_outcomes(run: Path) -> frozenset[str]:
     no application's, or no readable config)."""
     import json
 
-    from jaxsimrl.plugin import application
 
     try:
         env = json.loads((run / "config.json").read_text()).get("env")

@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Any
 
 from foam_bridge.config import FoamEnvConfig
 from foam_bridge.errors import OpenFOAMNotFoundError
+from foam_bridge.user_case import CASE_DEFAULT_FIELDS, case_defaults
 
 if TYPE_CHECKING:
     from foam_bridge.episode_case import CaseInfo
@@ -38,7 +39,6 @@ def user_case_config(cfg: FoamEnvConfig, explicit: Iterable[str],
     """``cfg`` of a user's case with the case's own convergence criterion and action box, for each of
     them not in ``explicit`` (the fields the user set); one-line CaseError if the case cannot run.
     ``checked``: the case already built and checked (foam_bridge.user_case.case_defaults)."""
-    from foam_bridge.user_case import CASE_DEFAULT_FIELDS, case_defaults
 
     given = set(explicit)
     if given & {"action_low", "action_high"}:  # the box is set as a whole

@@ -16,8 +16,18 @@ import time
 from pathlib import Path
 from typing import Any
 
+from foam_bridge.backends import validate_pool
+from foam_bridge.config import MESH_SCALE_USABLE_MIN, FoamEnvConfig
+from foam_bridge.env import action_spec
+from foam_bridge.errors import CaseError, OpenFOAMNotFoundError
+from foam_bridge.family_env import FamilyFactory
+from jaxsimrl.agents.ppo.config import PPOConfig
+from jaxsimrl.apps.foam.cli.train_family import family_case_dirs, family_configs, family_from_json
+from jaxsimrl.apps.foam.config import BUILTIN_ONLY, builtin_only_set, user_case_config
+from jaxsimrl.apps.foam.episodes import EPISODES_FILE, EpisodeLog
 from jaxsimrl.apps.foam.training import FoamPlan
 from jaxsimrl.cli.errors import UsageError, positive_float, positive_int
+from jaxsimrl.runs.run_dir import RunDir, read_json
 
 #: Env steps per update, summed over envs: ~20-30 episodes of the paper's 4-8 steps (see foam_ppo_defaults).
 FOAM_BATCH = 128
@@ -111,8 +121,6 @@ def _check_no_anneal(ppo: Any) -> None:
 # ---- the plan: everything resolved before anything heavy starts (a jaxsimrl.apps.foam.training.FoamPlan)
 # ----
 def fresh_plan(args: argparse.Namespace) -> FoamPlan:
-    from jaxsimrl.agents.ppo.config import PPOConfig
-    from jaxsimrl.runs.run_dir import RunDir
 
     extra = _read_config(args.config) if args.config else {}
     num_envs = args.num_envs or args.pool or 2
@@ -160,8 +168,6 @@ def _family(args: argparse.Namespace, extra: dict[str, Any]) -> dict[str, Any]:
     it."""
     if not getattr(args, "family", None):
         return {}
-    from foam_bridge.errors import CaseError, OpenFOAMNotFoundError
-    from jaxsimrl.apps.foam.cli.train_family import family_case_dirs, family_configs
 
     given = [f"--{name.replace('_', '-')}" for name in ("case", "mesh_scale", "step_height", "relax_k_omega")
              if getattr(args, name, None) is not None]
@@ -178,7 +184,6 @@ def _family(args: argparse.Namespace, extra: dict[str, Any]) -> dict[str, Any]:
 
 def _foam_template(args: argparse.Namespace, extra: dict[str, Any]) -> Any:
     """A family's shared settings: the defaults, --config's "foam" section, the observation flags."""
-    from foam_bridge.config import FoamEnvConfig
 
     values = {**FoamEnvConfig().to_json(), **extra, "work_dir": None}
     values.update({name: value for name, value in _shared_flags(args).items() if value is not None})
@@ -196,7 +201,6 @@ def _family_setup(family: dict[str, Any]) -> dict[str, Any]:
     """FoamPlan's family fields: the configs, and the factory every worker builds its envs with."""
     if not family:
         return {}
-    from foam_bridge.family_env import FamilyFactory
 
     return {"family": family, "make_env": FamilyFactory(family)}
 
@@ -204,7 +208,6 @@ def _family_setup(family: dict[str, Any]) -> dict[str, Any]:
 def _pool(ppo: Any, pool: int | None) -> int:
     """The pool size: at most one worker per env (all async_envs of an asynchronous batch); by default
     one per env of the learner's batch (num_envs), up to the CPU count."""
-    from foam_bridge.backends import validate_pool
 
     if pool is None:
         return validate_pool(ppo.num_envs)
@@ -229,7 +232,6 @@ def _check_init_action(ppo: Any, foam: Any) -> None:
     """ValueError unless ``ppo.init_action`` (if set) has one factor per action, each in the env's box."""
     import numpy as np
 
-    from foam_bridge.env import action_spec
 
     action = ppo.init_action
     if action is None:
@@ -269,7 +271,6 @@ def _starting_policy(run_dir: str, ppo: Any, foam: Any, checkpoint: int | None =
     network, observation and action box."""
     import numpy as np
 
-    from foam_bridge.env import action_spec
     from jaxsimrl.policy import load_policy
 
     try:
@@ -295,7 +296,6 @@ def _starting_policy(run_dir: str, ppo: Any, foam: Any, checkpoint: int | None =
 
 def _foam_config(args: argparse.Namespace, extra: dict[str, Any]) -> Any:
     """The FoamEnvConfig: the paper's built-in case, then --config's "foam" section, then flags."""
-    from foam_bridge.config import MESH_SCALE_USABLE_MIN, FoamEnvConfig
 
     if extra.get("work_dir") is not None:
         raise UsageError('--config: "foam": work_dir is not used by train-foam: every worker builds its '
@@ -330,8 +330,6 @@ def _step_height(values: list[float] | None) -> float | list[float] | None:
 def _user_case(cfg: Any, args: argparse.Namespace, extra: dict[str, Any]) -> Any:
     """A user's case: built-in-geometry settings refused; the case's own convergence criterion and action
     box where --config's "foam" section does not set them (jaxsimrl.apps.foam.config.user_case_config)."""
-    from foam_bridge.errors import CaseError, OpenFOAMNotFoundError
-    from jaxsimrl.apps.foam.config import BUILTIN_ONLY, builtin_only_set, user_case_config
 
     flags = [f"--{name.replace('_', '-')}" for name in BUILTIN_ONLY if getattr(args, name) is not None]
     given = flags or [f'--config "foam": {name}' for name in builtin_only_set(extra)]
@@ -345,10 +343,6 @@ def _user_case(cfg: Any, args: argparse.Namespace, extra: dict[str, Any]) -> Any
 
 
 def resume_plan(args: argparse.Namespace) -> FoamPlan:
-    from foam_bridge.config import FoamEnvConfig
-    from jaxsimrl.agents.ppo.config import PPOConfig
-    from jaxsimrl.apps.foam.episodes import EPISODES_FILE, EpisodeLog
-    from jaxsimrl.runs.run_dir import RunDir
 
     fixed = ["config", "num_envs", "mesh_scale", "step_height", "max_iterations", "case", "family", "reward",
              "seed",
@@ -388,7 +382,6 @@ def resume_plan(args: argparse.Namespace) -> FoamPlan:
     if not steps and record.get("init_from"):  # the same starting network as the first time
         source = record["init_from"]
         init_from = _starting_policy(source["run_dir"], ppo, foam, checkpoint=source.get("update"))
-    from jaxsimrl.apps.foam.cli.train_family import family_from_json
 
     return FoamPlan(ppo, foam, episodes, int(record.get("seed", 0)), pool, backend, args.ray_address,
                     run.path, resume=True, record=record, init_from=init_from,
@@ -396,7 +389,6 @@ def resume_plan(args: argparse.Namespace) -> FoamPlan:
 
 
 def _read_config(path: str) -> dict[str, Any]:
-    from jaxsimrl.runs.run_dir import read_json
 
     try:
         values = read_json(path)

@@ -32,6 +32,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from foam_bridge.async_batch import AsyncFoamEnv
+from foam_bridge.timing import TimedSteps
+from jaxsimrl.apps.foam.episodes import EPISODES_FILE, EpisodeLog
+from jaxsimrl.runs.progress import EpisodeProgress
+from jaxsimrl.runs.run_dir import MetricsLog
+from jaxsimrl.runs.tensorboard import TENSORBOARD_DIR, tensorboard_log
 from jaxsimrl.training.common import ResumeError, config_record, restore
 
 __all__ = ["IN_FLIGHT", "FoamPlan", "ResumeError", "foam_summary", "train_foam"]
@@ -82,11 +88,7 @@ def train_foam(plan: FoamPlan, run: Any, *, tensorboard: bool = False,
     import jax
 
     from jaxsimrl.agents.ppo import make_train
-    from jaxsimrl.apps.foam.episodes import EPISODES_FILE, EpisodeLog
     from jaxsimrl.runs.checkpoint import Checkpoints
-    from jaxsimrl.runs.progress import EpisodeProgress
-    from jaxsimrl.runs.run_dir import MetricsLog
-    from jaxsimrl.runs.tensorboard import tensorboard_log
     from jaxsimrl.runs.training import Session, train
 
     steps = run.checkpoint_steps() if plan.resume else []
@@ -143,8 +145,6 @@ def _host_env(plan: FoamPlan) -> Any:
 
         return foam_vec_env(plan.foam, plan.ppo.num_envs, plan.pool, seed=plan.seed, backend=plan.backend,
                             ray_address=plan.ray_address, make_env=plan.make_env)
-    from foam_bridge.async_batch import AsyncFoamEnv
-    from foam_bridge.timing import TimedSteps
     from jaxsimrl.envs.host_async import AsyncHostVecEnv
 
     batch = AsyncFoamEnv(plan.foam, plan.ppo.async_envs, plan.ppo.num_envs, backend=plan.backend,
@@ -188,8 +188,6 @@ def _start_over(run: Any, episodes: Any) -> None:
     """A resumed run without a checkpoint (killed before its first one was saved) starts over from its
     config.json: the rows it wrote for updates that no checkpoint kept are truncated, so none is
     written twice."""
-    from jaxsimrl.runs.run_dir import MetricsLog
-    from jaxsimrl.runs.tensorboard import TENSORBOARD_DIR
 
     _say(f"{run.path} has no checkpoint (it stopped before its first update was saved): starting it over "
          f"from its config.json")

@@ -14,14 +14,17 @@ import os
 from pathlib import Path
 from typing import Any
 
+from foam_bridge.errors import OpenFOAMNotFoundError
+from foam_bridge.openfoam import find_openfoam
+from jaxsimrl.apps.foam.cli.grid_foam import add_confirm_argument, relaxation_factor
+from jaxsimrl.apps.foam.evaluation.eval import evaluate_foam
+from jaxsimrl.apps.foam.evaluation.eval_spec import CONTROLLERS, DEFAULT_CONTROLLERS, EvalSpec
 from jaxsimrl.cli.errors import fail, positive_float, positive_int, seed_type
 from jaxsimrl.cli.progress import RunProgress
 
 
 def register(subparsers: Any) -> None:
     """Add the ``eval-foam`` subcommand."""
-    from jaxsimrl.apps.foam.cli.grid_foam import add_confirm_argument, relaxation_factor
-    from jaxsimrl.apps.foam.evaluation.eval_spec import CONTROLLERS, DEFAULT_CONTROLLERS
 
     parser = subparsers.add_parser(
         "eval-foam", help="evaluate a train-foam policy against constant, default and random factors",
@@ -83,8 +86,6 @@ def _tuple(values: list[float] | None) -> tuple[float, ...] | None:
 
 
 def _check_openfoam() -> None:
-    from foam_bridge.errors import OpenFOAMNotFoundError
-    from foam_bridge.openfoam import find_openfoam
 
     try:
         find_openfoam()
@@ -94,8 +95,6 @@ def _check_openfoam() -> None:
 
 def run_eval_foam(args: argparse.Namespace) -> int:
     """Run the evaluation; print progress and the table of results."""
-    from jaxsimrl.apps.foam.evaluation.eval import evaluate_foam
-    from jaxsimrl.apps.foam.evaluation.eval_spec import EvalSpec
 
     spec = EvalSpec(run_dir=Path(args.run_dir), velocities=tuple(args.velocities),
                     step_heights=None if args.step_height is None else tuple(args.step_height),

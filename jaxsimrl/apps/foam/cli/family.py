@@ -16,6 +16,8 @@ import dataclasses
 from pathlib import Path
 from typing import Any
 
+from foam_bridge.errors import CaseError, OpenFOAMNotFoundError
+from foam_bridge.family import Variation, build_family, sample_variations
 from jaxsimrl.cli.errors import fail, positive_int, seed_type
 
 #: The range flags: (variation, what it does), in foam_bridge.family.VARIATION_NAMES's order.
@@ -46,7 +48,6 @@ def register(subparsers: Any) -> None:
 
 def ranges_of(args: argparse.Namespace) -> dict[str, tuple[float, float]]:
     """The ranges given on the command line, checked: LO <= HI, both valid for the variation."""
-    from foam_bridge.family import Variation
 
     ranges = {name: tuple(getattr(args, name)) for name, _ in RANGES if getattr(args, name) is not None}
     for name, (low, high) in ranges.items():
@@ -61,8 +62,6 @@ def ranges_of(args: argparse.Namespace) -> dict[str, tuple[float, float]]:
 
 def run_family(args: argparse.Namespace) -> int:
     """Build the family of every base, one line per case built."""
-    from foam_bridge.errors import CaseError, OpenFOAMNotFoundError
-    from foam_bridge.family import build_family, sample_variations
 
     variations = sample_variations(ranges_of(args), args.variants, args.seed)
     total = args.variants * len(args.bases)

@@ -22,7 +22,30 @@ import math
 from pathlib import Path
 from typing import Any
 
+from foam_bridge.config import (
+    BUILTIN_RELAX_K_OMEGA,
+    FOLLOW_ALPHA_U,
+    K_OMEGA_ACTION,
+    MESH_SCALE_USABLE_MIN,
+    STEP_HEIGHT_H,
+    TEST_CONVERGENCE,
+    TRAIN_CONVERGENCE,
+    FoamEnvConfig,
+)
+from foam_bridge.errors import OpenFOAMNotFoundError
+from foam_bridge.grid import best_cell, plot_grid, plot_grid_slices, run_grid, write_grid_csv
+from foam_bridge.openfoam import find_openfoam
+from jaxsimrl.apps.foam.evaluation.eval_spec import geometry_name
+from jaxsimrl.apps.foam.evaluation.family import (
+    FAMILY_BEST_JSON,
+    conditions,
+    family_best,
+    family_best_json,
+    summary_line,
+)
 from jaxsimrl.cli.errors import fail, positive_float, positive_int
+from jaxsimrl.cli.progress import RunProgress
+from jaxsimrl.runs.atomic import atomic_write_json
 
 CRITERIA = ("train", "test")
 
@@ -40,14 +63,12 @@ def relaxation_factor(text: str) -> float:
 
 def k_omega_factor(text: str) -> float | str:
     """argparse type: a relaxation factor in (0, 1] or ``alpha_u`` (k and omega follow alpha_u)."""
-    from foam_bridge.config import FOLLOW_ALPHA_U
 
     return FOLLOW_ALPHA_U if text == FOLLOW_ALPHA_U else relaxation_factor(text)
 
 
 def k_omega_setting(text: str) -> float | str:
     """argparse type of train-foam's --relax-k-omega: a factor, ``alpha_u`` or ``action`` (a third action)."""
-    from foam_bridge.config import K_OMEGA_ACTION
 
     return K_OMEGA_ACTION if text == K_OMEGA_ACTION else k_omega_factor(text)
 
@@ -71,7 +92,6 @@ def add_confirm_argument(parser: argparse.ArgumentParser) -> None:
 
 def register(subparsers: Any) -> None:
     """Add the ``grid-foam`` subcommand."""
-    from foam_bridge.config import BUILTIN_RELAX_K_OMEGA, FOLLOW_ALPHA_U, MESH_SCALE_USABLE_MIN, STEP_HEIGHT_H
 
     parser = subparsers.add_parser(
         "grid-foam",
@@ -114,7 +134,6 @@ def register(subparsers: Any) -> None:
 
 
 def _config(args: argparse.Namespace) -> Any:
-    from foam_bridge.config import TEST_CONVERGENCE, TRAIN_CONVERGENCE, FoamEnvConfig
 
     convergence = TRAIN_CONVERGENCE if args.criterion == "train" else TEST_CONVERGENCE
     if args.alpha_t is not None and args.relax_k_omega is not None:
@@ -141,8 +160,6 @@ def _conditions(args: argparse.Namespace) -> list[tuple[float, float]]:
 
 
 def _check_openfoam() -> None:
-    from foam_bridge.errors import OpenFOAMNotFoundError
-    from foam_bridge.openfoam import find_openfoam
 
     try:
         find_openfoam()
@@ -169,8 +186,6 @@ def run_grid_foam(args: argparse.Namespace) -> int:
     """Run the grid, write grid.csv and the heatmaps (and family_best.json over several conditions),
     print the best cell. grid.csv is rewritten (atomically) after every finished cell, so a grid that is
     interrupted or killed keeps the runs it finished."""
-    from foam_bridge.grid import run_grid, write_grid_csv
-    from jaxsimrl.cli.progress import RunProgress
 
     cfg = _config(args)
     out = _check_out_dir(args.out)
@@ -208,9 +223,6 @@ def run_grid_foam(args: argparse.Namespace) -> int:
 def _plot_conditions(cells: list[Any], cfg: Any, args: argparse.Namespace, out: Path) -> list[str]:
     """The heatmaps: grid.png (grid_alpha_t_<A>.png) for one condition, else the same per condition
     with the stem grid_<geometry>_V<v>; returns the file names."""
-    from foam_bridge.grid import plot_grid, plot_grid_slices
-    from jaxsimrl.apps.foam.evaluation.eval_spec import geometry_name
-    from jaxsimrl.apps.foam.evaluation.family import conditions
 
     factor = cfg.k_omega_relaxation
     k_omega = ("" if args.alpha_t else "k/omega follow alpha_u, " if isinstance(factor, str)
@@ -232,7 +244,6 @@ def _plot_conditions(cells: list[Any], cfg: Any, args: argparse.Namespace, out: 
 
 
 def _best_line(cells: list[Any]) -> str:
-    from foam_bridge.grid import best_cell
 
     best = best_cell(cells)
     names = ("alpha_u", "alpha_p", "alpha_t")
@@ -242,13 +253,6 @@ def _best_line(cells: list[Any]) -> str:
 
 def _write_family_best(cells: list[Any], args: argparse.Namespace, out: Path) -> list[str]:
     """OUT/family_best.json (atomically); returns the summary line and the file's line."""
-    from jaxsimrl.apps.foam.evaluation.family import (
-        FAMILY_BEST_JSON,
-        family_best,
-        family_best_json,
-        summary_line,
-    )
-    from jaxsimrl.runs.atomic import atomic_write_json
 
     best = family_best(cells, args.max_iterations)
     atomic_write_json(out / FAMILY_BEST_JSON, family_best_json(best, cells, args.max_iterations,

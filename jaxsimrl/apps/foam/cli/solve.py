@@ -16,13 +16,16 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from foam_bridge.errors import CaseError, OpenFOAMNotFoundError
+from jaxsimrl.apps.foam.cli.grid_foam import check_factor, relaxation_factor
+from jaxsimrl.apps.foam.cli.solve_campaign import add_campaign_arguments, is_campaign, run_campaign_command
+from jaxsimrl.apps.foam.solve import solve_case
+from jaxsimrl.apps.foam.solve.criterion import parse_residual
 from jaxsimrl.cli.errors import fail, positive_float, positive_int
 
 
 def register(subparsers: Any) -> None:
     """Add the ``solve`` subcommand."""
-    from jaxsimrl.apps.foam.cli.grid_foam import check_factor, relaxation_factor
-    from jaxsimrl.apps.foam.cli.solve_campaign import add_campaign_arguments
 
     parser = subparsers.add_parser(
         "solve", help="converge an OpenFOAM simpleFoam case with a trained controller",
@@ -81,7 +84,6 @@ def register(subparsers: Any) -> None:
 
 def residual_spec(text: str) -> Any:
     """argparse type of --residual (jaxsimrl.apps.foam.solve.criterion.parse_residual)."""
-    from jaxsimrl.apps.foam.solve.criterion import parse_residual
 
     try:
         return parse_residual(text)
@@ -128,9 +130,6 @@ def solve_options(args: argparse.Namespace) -> dict[str, Any]:
 
 def run_solve(args: argparse.Namespace) -> int:
     """Run solve_case and print its summary (a campaign: jaxsimrl.apps.foam.cli.solve_campaign)."""
-    from foam_bridge.errors import CaseError, OpenFOAMNotFoundError
-    from jaxsimrl.apps.foam.cli.solve_campaign import is_campaign, run_campaign_command
-    from jaxsimrl.apps.foam.solve import solve_case
 
     if args.policy is not None and args.controller != "learned":
         fail(f"--policy is a learned controller; --controller {args.controller} needs no policy")

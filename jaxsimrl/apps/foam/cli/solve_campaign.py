@@ -14,7 +14,13 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from foam_bridge.backends import BACKENDS
+from foam_bridge.errors import ClusterError, OpenFOAMNotFoundError, PoolLostError
+from foam_bridge.openfoam import find_openfoam
+from jaxsimrl.apps.foam.solve.campaign import find_cases, is_case, plan_campaign, run_campaign
+from jaxsimrl.apps.foam.solve.campaign_table import CAMPAIGN_CSV, CAMPAIGN_PNG, CONVERGED, finished_line
 from jaxsimrl.cli.errors import fail, positive_int
+from jaxsimrl.cli.progress import RunProgress
 
 #: --out of a campaign when none is given.
 DEFAULT_OUT = "campaign"
@@ -22,7 +28,6 @@ DEFAULT_OUT = "campaign"
 
 def add_campaign_arguments(parser: argparse.ArgumentParser) -> None:
     """--pool, --backend, --ray-address and --resume on ``solve``'s parser."""
-    from foam_bridge.backends import BACKENDS
 
     group = parser.add_argument_group(
         "campaigns", "several CASEs, or a directory holding cases, or any of these flags: each case is "
@@ -43,7 +48,6 @@ def is_campaign(args: argparse.Namespace) -> bool:
     """Whether the command line asks for a campaign rather than one solve: several CASEs, a campaign flag,
     or one directory that is no case but holds some. Anything else is today's single solve, its errors
     included (a missing or broken CASE)."""
-    from jaxsimrl.apps.foam.solve.campaign import is_case
 
     if len(args.case) > 1 or args.resume or any(flag is not None for flag in
                                                  (args.pool, args.backend, args.ray_address)):
@@ -55,11 +59,6 @@ def is_campaign(args: argparse.Namespace) -> bool:
 def run_campaign_command(args: argparse.Namespace, options: dict[str, Any]) -> int:
     """Plan, check and run the campaign; print its table's path. Exit 0 when every case converged, 1
     otherwise (a case not converged or failed, or the pool lost), 2 for bad input."""
-    from foam_bridge.errors import ClusterError, OpenFOAMNotFoundError, PoolLostError
-    from foam_bridge.openfoam import find_openfoam
-    from jaxsimrl.apps.foam.solve.campaign import find_cases, plan_campaign, run_campaign
-    from jaxsimrl.apps.foam.solve.campaign_table import CAMPAIGN_CSV, CAMPAIGN_PNG, CONVERGED, finished_line
-    from jaxsimrl.cli.progress import RunProgress
 
     backend = args.backend or "local"
     if args.ray_address is not None and backend != "ray":

@@ -27,7 +27,13 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+from foam_bridge.base_case import check_case
 from foam_bridge.config import FoamEnvConfig
+from foam_bridge.openfoam import find_openfoam
+from jaxsimrl.apps.foam.config import user_case_config
+from jaxsimrl.apps.foam.solve.fields import observed_mapping
+from jaxsimrl.apps.foam.solve.own import run_own
+from jaxsimrl.apps.foam.solve.settings import around_own, check_factor, read_case_settings
 
 #: Each case's iteration budget: this multiple of its own settings' iterations (rounded up to steps).
 BUDGET_FACTOR = 3
@@ -63,8 +69,6 @@ def family_configs(cases: Sequence[Path], template: FoamEnvConfig,
                    say: Callable[[str], None]) -> dict[str, FoamEnvConfig]:
     """{case name: its config}: ``template``'s observation switches and interval, the shared settings
     above, and each case's own criterion, box, algorithm, budget and reward scale (its own run measured)."""
-    from foam_bridge.base_case import check_case
-    from foam_bridge.openfoam import find_openfoam
 
     openfoam, configs = find_openfoam(template.openfoam_path), {}
     names = _names(cases)
@@ -79,10 +83,6 @@ def family_configs(cases: Sequence[Path], template: FoamEnvConfig,
 
 def _case_config(cfg: FoamEnvConfig, case: Path, checked: tuple[Path, Any], own_dir: Path,
                  say: Callable[[str], None], name: str) -> FoamEnvConfig:
-    from jaxsimrl.apps.foam.config import user_case_config
-    from jaxsimrl.apps.foam.solve.fields import observed_mapping
-    from jaxsimrl.apps.foam.solve.own import run_own
-    from jaxsimrl.apps.foam.solve.settings import around_own, check_factor, read_case_settings
 
     settings, info = read_case_settings(case, 0), checked[1]
     confirm = None if cfg.confirm_alpha_u is None else check_factor(settings)  # as solve checks the case

@@ -25,15 +25,18 @@ import sys
 from collections.abc import Callable
 from typing import Any
 
+from foam_bridge.config import FOLLOW_ALPHA_U, K_OMEGA_ACTION, MESH_SCALE_USABLE_MIN, REWARDS
+from foam_bridge.errors import CaseError, ClusterError, OpenFOAMNotFoundError
+from jaxsimrl.apps.foam.cli.grid_foam import add_confirm_argument, k_omega_setting
 from jaxsimrl.apps.foam.plan import KNOBS, OBSERVE_SWITCHES, FoamPlan, fresh_plan, resume_plan
+from jaxsimrl.apps.foam.training import ResumeError, train_foam
 from jaxsimrl.cli.errors import UsageError, positive_float, positive_int, seed_type
+from jaxsimrl.runs.run_dir import RunDir
 from jaxsimrl.runs.signals import exit_code, stop_word
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add train-foam to the ``jaxsimrl`` dispatcher."""
-    from foam_bridge.config import FOLLOW_ALPHA_U, K_OMEGA_ACTION, MESH_SCALE_USABLE_MIN, REWARDS
-    from jaxsimrl.apps.foam.cli.grid_foam import add_confirm_argument, k_omega_setting
 
     p = subparsers.add_parser(
         "train-foam", help="train PPO to set simpleFoam's relaxation factors (real OpenFOAM cases)",
@@ -111,10 +114,7 @@ def run_train_foam(args: argparse.Namespace, on_chunk: Any = None) -> int:
         sys.stdout.write(json.dumps({"ppo": plan.ppo.to_dict(), "foam": plan.foam.to_json(),
                                      "episodes": plan.episodes, "pool": plan.pool}, indent=2) + "\n")
         return 0
-    from foam_bridge.errors import CaseError, ClusterError, OpenFOAMNotFoundError
-    from jaxsimrl.apps.foam.training import ResumeError, train_foam
     from jaxsimrl.envs.host import HostEnvError
-    from jaxsimrl.runs.run_dir import RunDir
 
     try:
         run = RunDir(plan.run_path) if plan.resume else RunDir.create(plan.run_path)

@@ -11,7 +11,9 @@ from pathlib import Path
 from typing import Any
 
 from foam_bridge.config import BUILTIN_RELAX_K_OMEGA, FoamEnvConfig
+from foam_bridge.grid import best_cell, plot_grid, read_grid_csv, run_grid, write_grid_csv
 from jaxsimrl.apps.foam.evaluation.eval_spec import GRID_CSV, GRID_PNG, TUTORIAL_DEFAULTS, EvalSpec
+from jaxsimrl.apps.foam.evaluation.family import conditions, family_best, family_best_json, grid_cap
 
 
 @dataclass(frozen=True)
@@ -47,7 +49,6 @@ def as_action(cfg: FoamEnvConfig, factors: Sequence[float]) -> tuple[float, ...]
 
 def read_baseline_grid(path: str | Path) -> list[Any]:
     """The cells of a grid-foam grid.csv; one-line ValueError for a missing or bad file."""
-    from foam_bridge.grid import read_grid_csv
 
     try:
         cells = read_grid_csv(path)
@@ -63,8 +64,6 @@ def baseline_from_csv(path: str | Path, cells: Sequence[Any] | None = None) -> B
     """The best constant of a grid-foam grid.csv (``cells``: already read from it): its best converged
     cell, or over several conditions the cell best for the family (jaxsimrl.apps.foam.evaluation.family, each
     failure at the grid's cap); one-line ValueError for a missing or bad file or no converged cell."""
-    from foam_bridge.grid import best_cell
-    from jaxsimrl.apps.foam.evaluation.family import conditions, family_best, family_best_json, grid_cap
 
     cells = read_baseline_grid(path) if cells is None else cells
     family = None
@@ -92,7 +91,6 @@ def baseline_from_csv(path: str | Path, cells: Sequence[Any] | None = None) -> B
 def baseline_from_grid(spec: EvalSpec, cfg: FoamEnvConfig, velocity: float, geometry: str,
                        say: Callable[[str], None]) -> Baseline:
     """Run the small constant grid at ``velocity`` on ``geometry``; writes it to the output directory."""
-    from foam_bridge.grid import best_cell, plot_grid, run_grid, write_grid_csv
 
     def on_cell(cell: Any) -> None:
         say(f"grid {factors_text(cell.factors)}: {cell.outcome} @ {cell.iterations} it")

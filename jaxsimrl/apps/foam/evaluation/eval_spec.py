@@ -44,6 +44,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from foam_bridge.config import STEP_HEIGHT_H, TEST_CONVERGENCE, FoamEnvConfig
+from foam_bridge.grid import grid_config
 from jaxsimrl.apps.foam.evaluation import oracle as foam_oracle
 
 EVAL_DIR = "eval"
@@ -180,7 +181,6 @@ def eval_config(train: FoamEnvConfig, spec: EvalSpec, step_height: float | None,
     confirm_alpha_u, if it has one), this geometry and the spec's mesh; its action box widened to hold
     the constant factors (they must not be clipped; learned and random actions lie in the training box
     anyway)."""
-    from foam_bridge.grid import grid_config
 
     cfg = dataclasses.replace(train, mesh_scale=spec.mesh_scale, convergence=dict(TEST_CONVERGENCE),
                               work_dir=None, keep_cases=False)

@@ -24,6 +24,11 @@ from typing import Any
 
 import numpy as np
 
+from foam_bridge import case as foam_case
+from foam_bridge.openfoam import find_openfoam
+from jaxsimrl.apps.foam.config import foam_config_to_json
+from jaxsimrl.runs.atomic import atomic_write_bytes, atomic_write_json
+
 #: FoamEnvConfig fields that do not change what the solver computes.
 _NOT_IN_KEY = ("work_dir", "keep_cases", "step_timeout_s")
 
@@ -41,9 +46,6 @@ class CachedReference:
 def reference_keys(cfg: Any, velocities: Sequence[float], factors: tuple[float, float]) -> dict[float, str]:
     """The hex digest naming the reference of ``cfg`` (a FoamEnvConfig) and ``factors`` at each of
     ``velocities``. The case files and foam_bridge's source are read once for all of them."""
-    from foam_bridge import case as foam_case
-    from foam_bridge.openfoam import find_openfoam
-    from jaxsimrl.apps.foam.config import foam_config_to_json
 
     config = {k: v for k, v in foam_config_to_json(cfg).items() if k not in _NOT_IN_KEY}
     openfoam = find_openfoam(cfg.openfoam_path)
@@ -87,7 +89,6 @@ class ReferenceCache:
 
     def store(self, key: str, entry: CachedReference, about: dict[str, Any]) -> None:
         """Store ``entry`` (``about``: what it is, for a person reading the JSON)."""
-        from jaxsimrl.runs.atomic import atomic_write_bytes, atomic_write_json
 
         self.directory.mkdir(parents=True, exist_ok=True)
         buffer = io.BytesIO()

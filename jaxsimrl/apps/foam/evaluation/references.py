@@ -8,6 +8,7 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 from foam_bridge.config import FoamEnvConfig, without_convergence_test
+from foam_bridge.fields import relative_l2
 from jaxsimrl.apps.foam.evaluation.baseline import Baseline, as_action
 from jaxsimrl.apps.foam.evaluation.controllers import ConstantController
 from jaxsimrl.apps.foam.evaluation.eval_spec import REFERENCE, TUTORIAL_DEFAULTS, EvalSpec, episode_uid
@@ -77,7 +78,6 @@ class References:
 
     def measure(self, result: EpisodeResult) -> EpisodeResult:
         """Record the run's U error (None: no reference, or no final field); drop the field itself."""
-        from foam_bridge.fields import relative_l2
 
         reference = self.runs.get((result.job.geometry, result.job.velocity))
         self.errors[result.job.uid] = relative_l2(result.final_u, None if reference is None

@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from foam_bridge.config import TEST_CONVERGENCE
+from jaxsimrl.apps.foam.config import foam_config_to_json
 from jaxsimrl.apps.foam.evaluation import oracle as foam_oracle
 from jaxsimrl.apps.foam.evaluation.baseline import Baseline, constant_factors, factors_text
 from jaxsimrl.apps.foam.evaluation.eval_spec import (
@@ -87,7 +88,6 @@ def build_report(spec: EvalSpec, run: Any, baseline: Baseline | None, shapes: di
     """eval.json: the protocol, the baseline, and per controller -> geometry -> velocity the runs
     (``rows``, as run_row makes them) and their statistics; the oracle's cells add its choice and cost
     (``oracle``, from foam_oracle.choose)."""
-    from jaxsimrl.apps.foam.config import foam_config_to_json
 
     chosen = [c for c in CONTROLLERS if c in spec.controllers]
     table: dict[str, Any] = {c: {g: {} for g in shapes} for c in chosen}

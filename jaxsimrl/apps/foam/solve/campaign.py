@@ -38,6 +38,8 @@ from typing import Any
 from foam_bridge.backends import Reply, Request, make_backend
 from foam_bridge.backends.reaper import kill_processes_under
 from jaxsimrl.apps.foam.solve.campaign_table import failed_row, row_of, write_plot, write_table
+from jaxsimrl.apps.foam.solve.report import write_status
+from jaxsimrl.apps.foam.solve.runner import solve_case
 from jaxsimrl.runs.atomic import atomic_write_text
 
 __all__ = ["CASE_TIMEOUT_S", "CaseJob", "CaseSolver", "find_cases", "plan_campaign", "run_campaign"]
@@ -164,7 +166,6 @@ class CaseSolver:
         mp.current_process()._config.pop("daemon", None)  # type: ignore[attr-defined]
 
     def reset(self, case: str, out: str, log: str, options: Mapping[str, Any]) -> dict[str, Any]:
-        from jaxsimrl.apps.foam.solve.runner import solve_case
 
         target = Path(out)
         kill_processes_under(target)  # what a lost worker's solve left running here (on this node)
@@ -253,7 +254,6 @@ def _write(out: Path, jobs: Sequence[CaseJob], rows: Mapping[int, dict[str, Any]
 def _mark_stopped(jobs: Sequence[CaseJob], stopped: Any) -> None:
     """The cases the campaign stopped mid-solve say so in their solve.json (their worker was killed
     before it could), unless the solve finished just before; --resume solves them again either way."""
-    from jaxsimrl.apps.foam.solve.report import write_status
 
     for index in stopped:
         job = jobs[index]

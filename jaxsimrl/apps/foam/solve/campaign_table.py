@@ -15,6 +15,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from jaxsimrl.apps.foam.solve.report import preload_plotting
 from jaxsimrl.runs.atomic import atomic_write_bytes, atomic_write_text
 
 CAMPAIGN_CSV = "campaign.csv"
@@ -76,7 +77,6 @@ def write_table(out: Path, rows: Sequence[Mapping[str, Any]], compare: bool) -> 
 def write_plot(out: Path, rows: Sequence[Mapping[str, Any]], compare: bool) -> None:
     """OUT/campaign.png: iterations and wall seconds per case, the controller's bar beside the case's own
     settings' where --compare; a failed case has no bar and says so."""
-    from jaxsimrl.apps.foam.solve.report import preload_plotting
 
     preload_plotting()  # matplotlib with the Agg backend: no display needed
     import matplotlib.pyplot as plt

@@ -17,6 +17,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from jaxsimrl.apps.foam.config import foam_config_from_json
+from jaxsimrl.runs.run_dir import RunDir
+
 #: The controller used when no --policy is given (files only; see jaxsimrl/apps/foam/controllers/__init__.py).
 DEFAULT_CONTROLLER = Path(__file__).resolve().parents[1] / "controllers" / "default"
 PROVENANCE = "provenance.json"
@@ -67,8 +70,6 @@ def as_controller(policy: Any) -> Any:
 def policy_env_config(path: str | Path | None) -> Any:
     """The FoamEnvConfig a controller trained with, from its config.json alone (no JAX); one-line
     ValueError if it has none."""
-    from jaxsimrl.apps.foam.config import foam_config_from_json
-    from jaxsimrl.runs.run_dir import RunDir
 
     record = RunDir.existing(path if path is not None else DEFAULT_CONTROLLER).read_config()
     if record.get("env") != "foam" or not isinstance(record.get("foam"), dict):

@@ -20,6 +20,8 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from foam_bridge.config import NEVER_CONVERGED
+from foam_bridge.env import CASE_STOP
 from jaxsimrl.runs.atomic import atomic_write_text
 
 #: Where the criterion came from, as the report says it.
@@ -97,14 +99,12 @@ def describe(criterion: Mapping[str, float], source: str) -> str:
 
 def stop_only(solved: Sequence[str]) -> dict[str, float]:
     """The criterion of a case that only its runTimeControl ends: no field ever meets it."""
-    from foam_bridge.config import NEVER_CONVERGED
 
     return {name: NEVER_CONVERGED for name in solved}
 
 
 def source_of(convergence: Mapping[str, float], residual: Residual | str | None) -> str:
     """Where a solve's criterion came from: FROM_FLAG, FROM_STOP or FROM_CASE."""
-    from foam_bridge.config import NEVER_CONVERGED
 
     if residual is not None:
         return FROM_FLAG
@@ -134,7 +134,6 @@ def converged_by(run: Any, rescue: Any, criterion_from: str) -> str | None:
     """What ended the run whose fields ``out`` holds as converged (None if it did not converge): the
     controlled ``run`` (the criterion, ``criterion_from``; or the case's own function object,
     foam_bridge.env.CASE_STOP), or the case's own run ``rescue`` that replaced it."""
-    from foam_bridge.env import CASE_STOP
 
     if rescue is not None:
         return own_converged_by(rescue, criterion_from)

@@ -16,6 +16,8 @@ from typing import Any, Protocol
 import numpy as np
 
 from foam_bridge import criterion_distance
+from foam_bridge.backends import BAD_INPUT_ERRORS, Request
+from foam_bridge.backends.local import LocalBackend
 from foam_bridge.config import FoamEnvConfig
 from foam_bridge.env import factors_of
 from jaxsimrl.apps.foam.solve.watchdog import Watchdog, WatchdogSettings
@@ -86,8 +88,6 @@ def drive(cfg: FoamEnvConfig, actor: Callable[[float], Actor], fallback: list[fl
     worker's env (jaxsimrl.apps.foam.solve.settings.CheckedCase: from that check's build); ``on_step(run)``
     after every step but the episode's last (jaxsimrl.apps.foam.solve.live redraws solve.png; the final report
     draws the last, and a drawing of it here would only delay the report by ~0.4 s)."""
-    from foam_bridge.backends import BAD_INPUT_ERRORS, Request
-    from foam_bridge.backends.local import LocalBackend
 
     run = ControlledRun()
     started = time.monotonic()

@@ -18,6 +18,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from foam_bridge.logparse import LogParser
+from foam_bridge.openfoam import find_openfoam
+from foam_bridge.parallel import decompose, reconstruct
+from foam_bridge.solver import run_to_end
+from foam_bridge.template import copy_case, run_application
+from jaxsimrl.apps.foam.solve.criterion import write_criterion
+
 #: Fields whose factor a constant comparison sets (as the bridge names them in relaxationFactors).
 CONSTANT_FIELDS = ("U", "p", "turbulence")
 
@@ -49,12 +56,6 @@ def run_own(source: Path, dest: Path, label: str, timeout_s: float, factors: Seq
     ``start_time``: the time directory it starts from (``startFrom latestTime`` with only 0 and that one
     copied), iterations counted from there; ``ranks`` > 1: decomposed, run under mpirun and its latest
     fields reconstructed, as the user would run it."""
-    from foam_bridge.logparse import LogParser
-    from foam_bridge.openfoam import find_openfoam
-    from foam_bridge.parallel import decompose, reconstruct
-    from foam_bridge.solver import run_to_end
-    from foam_bridge.template import copy_case, run_application
-    from jaxsimrl.apps.foam.solve.criterion import write_criterion
 
     openfoam = find_openfoam()
     copy_case(source, dest, start_time=start_time)

@@ -18,7 +18,16 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from foam_bridge import foamdict
+from foam_bridge.base_case import check_case, check_case_files, declared_patches
 from foam_bridge.config import FoamEnvConfig
+from foam_bridge.env import FoamCaseEnv
+from foam_bridge.errors import CaseError, NoResidualControl
+from foam_bridge.fields import time_directories
+from foam_bridge.logparse import solved_field_names
+from foam_bridge.openfoam import find_openfoam
+from foam_bridge.template import copy_case
+from jaxsimrl.apps.foam.config import user_case_config
 from jaxsimrl.apps.foam.solve.criterion import Residual, resolve, stop_only, stopping_function_objects
 from jaxsimrl.apps.foam.solve.fields import observed_mapping
 
@@ -53,7 +62,6 @@ class CheckedCase:
     info: Any
 
     def __call__(self, cfg: FoamEnvConfig, work_dir: Path, env_id: int) -> Any:
-        from foam_bridge.env import FoamCaseEnv
 
         return FoamCaseEnv(cfg, work_dir=work_dir, env_id=env_id, base=(self.directory, self.info))
 
@@ -63,7 +71,6 @@ def start_of(case: Path, from_time: float | None = None) -> tuple[int, str]:
     its latest time directory, as ``startFrom latestTime`` would (a partly converged run goes on from
     there). One-line ValueError for a time it does not have, or one that is not an integer (the bridge
     runs deltaT 1)."""
-    from foam_bridge.fields import time_directories
 
     times = [value for value, path in time_directories(case) if (path / "U").is_file()
              or (path / "U.gz").is_file() or value == 0]
@@ -81,9 +88,6 @@ def start_of(case: Path, from_time: float | None = None) -> tuple[int, str]:
 def read_case_settings(case: Path, start_time: int = 0) -> CaseSettings:
     """Read the case's relaxation factors and budget as OpenFOAM expands them (on a scratch copy); the
     budget of a run from ``start_time`` > 0 is the case's endTime minus it."""
-    from foam_bridge import foamdict
-    from foam_bridge.openfoam import find_openfoam
-    from foam_bridge.template import copy_case
 
     openfoam = find_openfoam()
     with tempfile.TemporaryDirectory(prefix="jaxsimrl_solve_read_") as scratch:
@@ -136,7 +140,6 @@ def not_applicable(policy_cfg: FoamEnvConfig, settings: CaseSettings,
 
 
 def _factor(tree: Any, name: str) -> float | None:
-    from foam_bridge import foamdict
 
     try:
         value = foamdict.lookup(tree, name) if isinstance(tree, dict) else None
@@ -183,11 +186,6 @@ def solve_config(case: Path, policy_cfg: FoamEnvConfig, work: Path, max_iteratio
     criterion, box and observed fields are applied, and none enters the build (the dry run relaxes with
     the case's own factors, or the box's lower corner, which is the built-in one for a case without own
     factors)."""
-    from foam_bridge.base_case import check_case, check_case_files
-    from foam_bridge.errors import NoResidualControl
-    from foam_bridge.logparse import solved_field_names
-    from foam_bridge.openfoam import find_openfoam
-    from jaxsimrl.apps.foam.config import user_case_config
 
     copied = {name: getattr(policy_cfg, name) for name in POLICY_FIELDS if hasattr(policy_cfg, name)}
     if getattr(policy_cfg, "relax_k_omega", None) == TURBULENCE_ACTION:
@@ -229,7 +227,6 @@ def inlet_of(case: Path, named: str | None, openfoam: Any) -> str | None:
     """The inlet patch a solve observes: ``named`` (--inlet-patch), which the case must have; else the
     case's patch ``inlet``, or None for a case without one (a cavity, a closed mixer: the rules run it, and
     a controller that observes the inlet's flow does not apply, :func:`not_applicable`)."""
-    from foam_bridge.base_case import declared_patches
 
     patches = declared_patches(case, openfoam)
     if named is None:
@@ -244,11 +241,6 @@ def _stopped_by_the_case(cfg: FoamEnvConfig, explicit: list[str], checked: Check
                          ) -> FoamEnvConfig:
     """``cfg`` of a case without residualControl: its runTimeControl's criterion alone
     (jaxsimrl.apps.foam.solve.criterion) and its own box; else a one-line CaseError naming --residual."""
-    from foam_bridge import foamdict
-    from foam_bridge.errors import CaseError
-    from foam_bridge.logparse import solved_field_names
-    from foam_bridge.openfoam import find_openfoam
-    from jaxsimrl.apps.foam.config import user_case_config
 
     controls = foamdict.expand(find_openfoam(cfg.openfoam_path), checked.directory, "system/controlDict")
     if not stopping_function_objects(controls):
