@@ -553,7 +553,7 @@ def test_a_reference_cache_reuses_a_reference_only_for_the_same_inputs(saved_run
 def test_the_reference_key_follows_the_case_files_and_not_where_they_run(tmp_path):
     import shutil
 
-    from foam_bridge.case import TEMPLATE_DIR
+    from foam_bridge.template import TEMPLATE_DIR
     from jaxsimrl.apps.foam.evaluation.reference_cache import reference_keys
 
     def reference_key(cfg, velocity, factors):

@@ -16,7 +16,7 @@ import foam_bridge
 PACKAGE = Path(__file__).parent.parent / "foam_bridge"
 MODULES = ["foam_bridge", "foam_bridge.batched", "foam_bridge.env", "foam_bridge.grid",
            "foam_bridge.gym_envs", "foam_bridge.backends.local", "foam_bridge.backends.ray_backend",
-           "foam_bridge.case", "foam_bridge.user_case", "foam_bridge.export"]
+           "foam_bridge.template", "foam_bridge.user_case", "foam_bridge.export"]
 HEAVY = ("jax", "jaxlib", "jaxsimrl")
 
 

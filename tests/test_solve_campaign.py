@@ -24,7 +24,7 @@ from foamlib import FoamFile
 from slow_case import STOP_LIMIT_S, iterations_in, seconds_until, wait_until
 from test_solve import _coarse_step
 
-from foam_bridge import case as foam_case
+from foam_bridge import template
 from foam_bridge.backends import Request
 from foam_bridge.backends.base import _batch_deadline_s, start_deadline_s
 from foam_bridge.backends.reaper import processes_under
@@ -142,7 +142,7 @@ def _variants(root: Path) -> list[Path]:
                                               ("c", 1.5), ("d", 1.5)]):
         case = _coarse_step(root / folder / ("step" if index < 2 else f"step{index}"))
         with FoamFile(case / "system" / "meshParameters") as params:
-            params.update(foam_case.mesh_parameters(0.4, 0.0127 * height))
+            params.update(template.mesh_parameters(0.4, 0.0127 * height))
         cases.append(case)
     return cases
 
