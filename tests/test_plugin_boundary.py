@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 
+import foam_bridge
 import jaxsimrl.plugin as plugin
 from foam_bridge.env import FAILURES
 from jaxsimrl.cli.main import build_parser
@@ -61,6 +62,22 @@ def test_no_core_module_names_an_application() -> None:
     named = {str(path.relative_to(ROOT.parent)): found for path in _core_files()
              if (found := _application_names(path))}
     assert named == {}
+
+
+def test_jaxsimrl_uses_foam_bridge_s_public_face_alone() -> None:
+    """Every import of foam_bridge in jaxsimrl (its OpenFOAM application) is ``import foam_bridge`` or
+    ``from foam_bridge import NAME`` with NAME in its ``__all__``: never a module behind the face."""
+    deep, unknown = [], []
+    for path in sorted(ROOT.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            where = f"{path.relative_to(ROOT.parent)}:{getattr(node, 'lineno', 0)}"
+            if isinstance(node, ast.Import):
+                deep += [where for alias in node.names if alias.name.startswith("foam_bridge.")]
+            elif isinstance(node, ast.ImportFrom) and (node.module or "").startswith("foam_bridge."):
+                deep.append(where)
+            elif isinstance(node, ast.ImportFrom) and node.module == "foam_bridge":
+                unknown += [f"{where} {a.name}" for a in node.names if a.name not in foam_bridge.__all__]
+    assert deep == [] and unknown == []
 
 
 def test_the_foam_application_plugs_in_through_the_contract() -> None:

@@ -16,12 +16,10 @@ from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from foam_bridge.config import FoamEnvConfig
-from foam_bridge.errors import OpenFOAMNotFoundError
-from foam_bridge.user_case import CASE_DEFAULT_FIELDS, case_defaults
+from foam_bridge import CASE_DEFAULT_FIELDS, FoamEnvConfig, OpenFOAMNotFoundError, case_defaults
 
 if TYPE_CHECKING:
-    from foam_bridge.episode_case import CaseInfo
+    from foam_bridge import CaseInfo
 
 #: Fields of the built-in case's geometry only: a user's case keeps its own mesh.
 BUILTIN_ONLY = ("mesh_scale", "step_height")

@@ -17,8 +17,7 @@ from collections import Counter
 from pathlib import Path
 from typing import Any
 
-from foam_bridge.env import FAILURES
-from foam_bridge.records import COLUMNS, EpisodeRecord, read_rows, rows_to_csv
+from foam_bridge import COLUMNS, FAILURES, EpisodeRecord, read_rows, rows_to_csv
 from jaxsimrl.evaluation.curves import MOVING_WINDOW
 from jaxsimrl.runs.atomic import atomic_write_text
 

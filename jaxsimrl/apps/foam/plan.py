@@ -16,11 +16,15 @@ import time
 from pathlib import Path
 from typing import Any
 
-from foam_bridge.backends import validate_pool
-from foam_bridge.config import MESH_SCALE_USABLE_MIN, FoamEnvConfig
-from foam_bridge.env import action_spec
-from foam_bridge.errors import CaseError, OpenFOAMNotFoundError
-from foam_bridge.family_env import FamilyFactory
+from foam_bridge import (
+    MESH_SCALE_USABLE_MIN,
+    CaseError,
+    FamilyFactory,
+    FoamEnvConfig,
+    OpenFOAMNotFoundError,
+    action_spec,
+    validate_pool,
+)
 from jaxsimrl.agents.ppo.config import PPOConfig
 from jaxsimrl.apps.foam.cli.train_family import family_case_dirs, family_configs, family_from_json
 from jaxsimrl.apps.foam.config import BUILTIN_ONLY, builtin_only_set, user_case_config

@@ -9,8 +9,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from foam_bridge.config import ACTION_NAMES
-from foam_bridge.env import action_spec
+from foam_bridge import ACTION_NAMES, action_spec
 from jaxsimrl.agents.ppo.policy import ActionBox
 from jaxsimrl.apps.foam.config import foam_config_from_json
 from jaxsimrl.policy.spec import EnvSpec

@@ -32,8 +32,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from foam_bridge.async_batch import AsyncFoamEnv
-from foam_bridge.timing import TimedSteps
+from foam_bridge import AsyncFoamEnv, TimedSteps
 from jaxsimrl.apps.foam.episodes import EPISODES_FILE, EpisodeLog
 from jaxsimrl.runs.progress import EpisodeProgress
 from jaxsimrl.runs.run_dir import MetricsLog

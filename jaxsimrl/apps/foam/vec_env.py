@@ -11,7 +11,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from foam_bridge.batched import BatchedFoamEnv
+from foam_bridge import BatchedFoamEnv
 from jaxsimrl.envs.host import EpisodeHook, HostVecEnv
 
 

@@ -14,8 +14,7 @@ import os
 from pathlib import Path
 from typing import Any
 
-from foam_bridge.errors import OpenFOAMNotFoundError
-from foam_bridge.openfoam import find_openfoam
+from foam_bridge import OpenFOAMNotFoundError, find_openfoam
 from jaxsimrl.apps.foam.cli.grid_foam import add_confirm_argument, relaxation_factor
 from jaxsimrl.apps.foam.evaluation.eval import evaluate_foam
 from jaxsimrl.apps.foam.evaluation.eval_spec import CONTROLLERS, DEFAULT_CONTROLLERS, EvalSpec

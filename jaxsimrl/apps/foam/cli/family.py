@@ -16,8 +16,7 @@ import dataclasses
 from pathlib import Path
 from typing import Any
 
-from foam_bridge.errors import CaseError, OpenFOAMNotFoundError
-from foam_bridge.family import Variation, build_family, sample_variations
+from foam_bridge import CaseError, OpenFOAMNotFoundError, Variation, build_family, sample_variations
 from jaxsimrl.cli.errors import fail, positive_int, seed_type
 
 #: The range flags: (variation, what it does), in foam_bridge.family.VARIATION_NAMES's order.

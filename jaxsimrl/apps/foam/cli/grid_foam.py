@@ -22,7 +22,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-from foam_bridge.config import (
+from foam_bridge import (
     BUILTIN_RELAX_K_OMEGA,
     FOLLOW_ALPHA_U,
     K_OMEGA_ACTION,
@@ -31,10 +31,14 @@ from foam_bridge.config import (
     TEST_CONVERGENCE,
     TRAIN_CONVERGENCE,
     FoamEnvConfig,
+    OpenFOAMNotFoundError,
+    best_cell,
+    find_openfoam,
+    plot_grid,
+    plot_grid_slices,
+    run_grid,
+    write_grid_csv,
 )
-from foam_bridge.errors import OpenFOAMNotFoundError
-from foam_bridge.grid import best_cell, plot_grid, plot_grid_slices, run_grid, write_grid_csv
-from foam_bridge.openfoam import find_openfoam
 from jaxsimrl.apps.foam.evaluation.eval_spec import geometry_name
 from jaxsimrl.apps.foam.evaluation.family import (
     FAMILY_BEST_JSON,

@@ -16,7 +16,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from foam_bridge.errors import CaseError, OpenFOAMNotFoundError
+from foam_bridge import CaseError, OpenFOAMNotFoundError
 from jaxsimrl.apps.foam.cli.grid_foam import check_factor, relaxation_factor
 from jaxsimrl.apps.foam.cli.solve_campaign import add_campaign_arguments, is_campaign, run_campaign_command
 from jaxsimrl.apps.foam.solve import solve_case

@@ -14,9 +14,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from foam_bridge.backends import BACKENDS
-from foam_bridge.errors import ClusterError, OpenFOAMNotFoundError, PoolLostError
-from foam_bridge.openfoam import find_openfoam
+from foam_bridge import BACKENDS, ClusterError, OpenFOAMNotFoundError, PoolLostError, find_openfoam
 from jaxsimrl.apps.foam.solve.campaign import find_cases, is_case, plan_campaign, run_campaign
 from jaxsimrl.apps.foam.solve.campaign_table import CAMPAIGN_CSV, CAMPAIGN_PNG, CONVERGED, finished_line
 from jaxsimrl.cli.errors import fail, positive_int

@@ -27,9 +27,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from foam_bridge.base_case import check_case
-from foam_bridge.config import FoamEnvConfig
-from foam_bridge.openfoam import find_openfoam
+from foam_bridge import FoamEnvConfig, check_case, find_openfoam
 from jaxsimrl.apps.foam.config import user_case_config
 from jaxsimrl.apps.foam.solve.fields import observed_mapping
 from jaxsimrl.apps.foam.solve.own import run_own

@@ -25,8 +25,15 @@ import sys
 from collections.abc import Callable
 from typing import Any
 
-from foam_bridge.config import FOLLOW_ALPHA_U, K_OMEGA_ACTION, MESH_SCALE_USABLE_MIN, REWARDS
-from foam_bridge.errors import CaseError, ClusterError, OpenFOAMNotFoundError
+from foam_bridge import (
+    FOLLOW_ALPHA_U,
+    K_OMEGA_ACTION,
+    MESH_SCALE_USABLE_MIN,
+    REWARDS,
+    CaseError,
+    ClusterError,
+    OpenFOAMNotFoundError,
+)
 from jaxsimrl.apps.foam.cli.grid_foam import add_confirm_argument, k_omega_setting
 from jaxsimrl.apps.foam.plan import KNOBS, OBSERVE_SWITCHES, FoamPlan, fresh_plan, resume_plan
 from jaxsimrl.apps.foam.training import ResumeError, train_foam

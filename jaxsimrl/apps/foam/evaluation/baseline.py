@@ -10,8 +10,15 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from foam_bridge.config import BUILTIN_RELAX_K_OMEGA, FoamEnvConfig
-from foam_bridge.grid import best_cell, plot_grid, read_grid_csv, run_grid, write_grid_csv
+from foam_bridge import (
+    BUILTIN_RELAX_K_OMEGA,
+    FoamEnvConfig,
+    best_cell,
+    plot_grid,
+    read_grid_csv,
+    run_grid,
+    write_grid_csv,
+)
 from jaxsimrl.apps.foam.evaluation.eval_spec import GRID_CSV, GRID_PNG, TUTORIAL_DEFAULTS, EvalSpec
 from jaxsimrl.apps.foam.evaluation.family import conditions, family_best, family_best_json, grid_cap
 

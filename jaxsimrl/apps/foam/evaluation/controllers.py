@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from foam_bridge.episodes import ConstantFactors, StatelessController, StepRecord
+from foam_bridge import ConstantFactors, StatelessController, StepRecord
 from jaxsimrl.apps.foam.solve.rules import RULES
 
 if TYPE_CHECKING:  # only a type: the controllers themselves need no JAX

@@ -13,7 +13,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from foam_bridge.config import TEST_CONVERGENCE
+from foam_bridge import TEST_CONVERGENCE
 from jaxsimrl.apps.foam.evaluation import oracle as foam_oracle
 from jaxsimrl.apps.foam.evaluation.baseline import (
     Baseline,

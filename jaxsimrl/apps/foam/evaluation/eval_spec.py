@@ -43,8 +43,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from foam_bridge.config import STEP_HEIGHT_H, TEST_CONVERGENCE, FoamEnvConfig
-from foam_bridge.grid import grid_config
+from foam_bridge import STEP_HEIGHT_H, TEST_CONVERGENCE, FoamEnvConfig, grid_config
 from jaxsimrl.apps.foam.evaluation import oracle as foam_oracle
 
 EVAL_DIR = "eval"

@@ -20,7 +20,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from foam_bridge.grid import Condition, GridCell
+from foam_bridge import Condition, GridCell
 
 FAMILY_BEST_JSON = "family_best.json"
 RULE = ("the factor cell with the lowest geometric mean over the conditions of (iterations / that "

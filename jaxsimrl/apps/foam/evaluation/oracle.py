@@ -19,8 +19,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
-from foam_bridge.config import BUILTIN_RELAX_K_OMEGA, FoamEnvConfig
-from foam_bridge.grid import GridCell
+from foam_bridge import BUILTIN_RELAX_K_OMEGA, FoamEnvConfig, GridCell
 from jaxsimrl.apps.foam.evaluation.family import family_best
 
 ORACLE = "case_oracle"

@@ -10,7 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from foam_bridge.config import FoamEnvConfig
+from foam_bridge import FoamEnvConfig
 from jaxsimrl.agents.ppo.config import PPOConfig
 from jaxsimrl.agents.ppo.policy import PolicyParams
 from jaxsimrl.policy import TrainedPolicy, load_policy

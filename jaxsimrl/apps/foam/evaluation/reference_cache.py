@@ -24,8 +24,8 @@ from typing import Any
 
 import numpy as np
 
-from foam_bridge import template
-from foam_bridge.openfoam import find_openfoam
+import foam_bridge
+from foam_bridge import find_openfoam
 from jaxsimrl.apps.foam.config import foam_config_to_json
 from jaxsimrl.runs.atomic import atomic_write_bytes, atomic_write_json
 
@@ -52,7 +52,7 @@ def reference_keys(cfg: Any, velocities: Sequence[float], factors: tuple[float, 
     shared = hashlib.sha256(json.dumps({"config": config, "factors": [float(f) for f in factors],
                                         "openfoam": [openfoam.path, openfoam.project_dir]},
                                        sort_keys=True).encode())
-    bridge = Path(template.__file__).parent  # holds the built-in template too
+    bridge = Path(foam_bridge.__file__).parent  # holds the built-in template too
     for root in ([bridge] if cfg.case_dir is None else [Path(cfg.case_dir), bridge]):
         _hash_tree(shared, root)
     base = shared.hexdigest()

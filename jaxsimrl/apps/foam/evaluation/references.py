@@ -7,8 +7,7 @@ import dataclasses
 from collections.abc import Callable, Sequence
 from typing import Any
 
-from foam_bridge.config import FoamEnvConfig, without_convergence_test
-from foam_bridge.fields import relative_l2
+from foam_bridge import FoamEnvConfig, relative_l2, without_convergence_test
 from jaxsimrl.apps.foam.evaluation.baseline import Baseline, as_action
 from jaxsimrl.apps.foam.evaluation.controllers import ConstantController
 from jaxsimrl.apps.foam.evaluation.eval_spec import REFERENCE, TUTORIAL_DEFAULTS, EvalSpec, episode_uid

@@ -11,7 +11,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from foam_bridge.config import TEST_CONVERGENCE
+from foam_bridge import TEST_CONVERGENCE
 from jaxsimrl.apps.foam.config import foam_config_to_json
 from jaxsimrl.apps.foam.evaluation import oracle as foam_oracle
 from jaxsimrl.apps.foam.evaluation.baseline import Baseline, constant_factors, factors_text

@@ -23,10 +23,8 @@ from typing import Any
 
 import numpy as np
 
-from foam_bridge.config import FoamEnvConfig
-from foam_bridge.episodes import EpisodeJob, EpisodeRun, StepRecord
-from foam_bridge.episodes import run_episodes as run_on_pool
-from foam_bridge.logparse import SolverCost
+from foam_bridge import EpisodeJob, EpisodeRun, FoamEnvConfig, SolverCost, StepRecord
+from foam_bridge import run_episodes as run_on_pool
 
 __all__ = ["EpisodeResult", "Job", "StepRecord", "run_episodes"]
 

@@ -25,8 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from foam_bridge.config import FoamEnvConfig
-from foam_bridge.episodes import EpisodeJob, run_episodes
+from foam_bridge import EpisodeJob, FoamEnvConfig, run_episodes
 from jaxsimrl.apps.foam.evaluation.controllers import LearnedController
 from jaxsimrl.policy import BatchActor
 

@@ -49,8 +49,7 @@ from typing import Any
 
 import numpy as np
 
-from foam_bridge.export import POST_PROCESSING, latest_time
-from foam_bridge.fields import relative_l2
+from foam_bridge import POST_PROCESSING, latest_time, relative_l2
 
 #: Tolerances: these factors x the case's loosest residualControl threshold (see the module docstring).
 FIELD_FACTOR = 5.0

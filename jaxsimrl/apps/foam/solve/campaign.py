@@ -35,8 +35,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from foam_bridge.backends import Reply, Request, make_backend
-from foam_bridge.backends.reaper import kill_processes_under
+from foam_bridge import Reply, Request, kill_processes_under, make_backend
 from jaxsimrl.apps.foam.solve.campaign_table import failed_row, row_of, write_plot, write_table
 from jaxsimrl.apps.foam.solve.report import write_status
 from jaxsimrl.apps.foam.solve.runner import solve_case

@@ -20,8 +20,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from foam_bridge.config import NEVER_CONVERGED
-from foam_bridge.env import CASE_STOP
+from foam_bridge import CASE_STOP, NEVER_CONVERGED
 from jaxsimrl.runs.atomic import atomic_write_text
 
 #: Where the criterion came from, as the report says it.

@@ -15,11 +15,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from foam_bridge import criterion_distance
-from foam_bridge.backends import BAD_INPUT_ERRORS, Request
-from foam_bridge.backends.local import LocalBackend
-from foam_bridge.config import FoamEnvConfig
-from foam_bridge.env import factors_of
+from foam_bridge import BAD_INPUT_ERRORS, FoamEnvConfig, LocalBackend, Request, criterion_distance, factors_of
 from jaxsimrl.apps.foam.solve.watchdog import Watchdog, WatchdogSettings
 
 

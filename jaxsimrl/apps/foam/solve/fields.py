@@ -15,7 +15,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
-from foam_bridge.logparse import solved_field_names
+from foam_bridge import solved_field_names
 
 VELOCITY = "velocity"
 PRESSURE = "pressure"

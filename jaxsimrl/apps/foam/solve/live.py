@@ -11,7 +11,7 @@ import threading
 from pathlib import Path
 from typing import Any
 
-from foam_bridge.logparse import LogParser
+from foam_bridge import LogParser
 from jaxsimrl.apps.foam.solve.report import SOLVE_PNG, plot_png, residual_history
 from jaxsimrl.runs.atomic import atomic_write_bytes
 

@@ -14,9 +14,14 @@ import os
 import shutil
 from pathlib import Path
 
-from foam_bridge.fields import time_directories
-from foam_bridge.openfoam import find_openfoam
-from foam_bridge.parallel import mpirun_path, processor_count, reconstruct_into, reconstructed_case
+from foam_bridge import (
+    find_openfoam,
+    mpirun_path,
+    processor_count,
+    reconstruct_into,
+    reconstructed_case,
+    time_directories,
+)
 
 __all__ = ["INPUT_DIR", "check_ranks", "export_source", "keep_processors", "prepared_input",
            "runs_side_by_side"]

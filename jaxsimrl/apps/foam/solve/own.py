@@ -18,11 +18,15 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from foam_bridge.logparse import LogParser
-from foam_bridge.openfoam import find_openfoam
-from foam_bridge.parallel import decompose, reconstruct
-from foam_bridge.solver import run_to_end
-from foam_bridge.template import copy_case, run_application
+from foam_bridge import (
+    LogParser,
+    copy_case,
+    decompose,
+    find_openfoam,
+    reconstruct,
+    run_application,
+    run_to_end,
+)
 from jaxsimrl.apps.foam.solve.criterion import write_criterion
 
 #: Fields whose factor a constant comparison sets (as the bridge names them in relaxationFactors).

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from foam_bridge.logparse import LogParser, field_residual
+from foam_bridge import LogParser, field_residual
 from jaxsimrl.apps.foam.solve.agreement import summary_line
 from jaxsimrl.apps.foam.solve.criterion import describe
 from jaxsimrl.runs.atomic import atomic_write_bytes, atomic_write_json

@@ -43,7 +43,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from foam_bridge.config import K_OMEGA_ACTION, FoamEnvConfig
+from foam_bridge import K_OMEGA_ACTION, FoamEnvConfig
 from jaxsimrl.apps.foam.solve.watchdog import Watchdog, WatchdogSettings
 
 __all__ = ["INTERVALS", "RULES", "Bandit", "ResidualRule", "RulePolicy"]

@@ -18,10 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from foam_bridge.env import FAILURES, shares_of
-from foam_bridge.errors import OpenFOAMNotFoundError
-from foam_bridge.export import export_case
-from foam_bridge.logparse import solved_field_names
+from foam_bridge import FAILURES, OpenFOAMNotFoundError, export_case, shares_of, solved_field_names
 from jaxsimrl.apps.foam.solve.agreement import compare_results
 from jaxsimrl.apps.foam.solve.controller import BackgroundLoad, Controller, as_controller, policy_env_config
 from jaxsimrl.apps.foam.solve.criterion import (

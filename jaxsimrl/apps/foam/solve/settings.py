@@ -18,15 +18,20 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from foam_bridge import foamdict
-from foam_bridge.base_case import check_case, check_case_files, declared_patches
-from foam_bridge.config import FoamEnvConfig
-from foam_bridge.env import FoamCaseEnv
-from foam_bridge.errors import CaseError, NoResidualControl
-from foam_bridge.fields import time_directories
-from foam_bridge.logparse import solved_field_names
-from foam_bridge.openfoam import find_openfoam
-from foam_bridge.template import copy_case
+from foam_bridge import (
+    CaseError,
+    FoamCaseEnv,
+    FoamEnvConfig,
+    NoResidualControl,
+    check_case,
+    check_case_files,
+    copy_case,
+    declared_patches,
+    find_openfoam,
+    foamdict,
+    solved_field_names,
+    time_directories,
+)
 from jaxsimrl.apps.foam.config import user_case_config
 from jaxsimrl.apps.foam.solve.criterion import Residual, resolve, stop_only, stopping_function_objects
 from jaxsimrl.apps.foam.solve.fields import observed_mapping
