@@ -141,7 +141,6 @@ def test_csv_round_trip_and_best_cell(tmp_path):
 def test_a_grid_stopped_part_way_keeps_its_finished_cells(capsys, tmp_path, monkeypatch):
     """grid.csv after every cell: a Ctrl-C after two of four cells leaves those two on disk, and each
     finished cell is a line in a log (no live bar off a terminal)."""
-    import foam_bridge.grid
     import jaxsimrl.apps.foam.cli.grid_foam
 
     def two_cells_then_interrupted(*args, on_cell, **kwargs):
@@ -150,7 +149,7 @@ def test_a_grid_stopped_part_way_keeps_its_finished_cells(capsys, tmp_path, monk
         raise KeyboardInterrupt
 
     monkeypatch.setattr(jaxsimrl.apps.foam.cli.grid_foam, "_check_openfoam", lambda: None)
-    monkeypatch.setattr(foam_bridge.grid, "run_grid", two_cells_then_interrupted)
+    monkeypatch.setattr(jaxsimrl.apps.foam.cli.grid_foam, "run_grid", two_cells_then_interrupted)
     out = tmp_path / "out"
     argv = ("--alpha-u", "0.5", "0.9", "--alpha-p", "0.5", "0.9", "--out", str(out))
     code, err, stdout = run_cli(capsys, *argv)
