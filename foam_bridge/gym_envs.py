@@ -95,7 +95,6 @@ class RelaxationControlEnv(gymnasium.Env):
     metadata = {"render_modes": []}
 
     def __init__(self, render_mode: str | None = None, **config: Any) -> None:
-
         _no_render(render_mode)
         self.cfg = _config_from_kwargs(config)
         self._dir: str | None

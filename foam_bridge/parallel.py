@@ -161,7 +161,6 @@ def reconstruct_into(source: Path, dest: Path, openfoam: OpenFOAM, time_name: st
             links.append(dest / processor.name)
             links[-1].symlink_to(processor.resolve())
         if mesh:
-
             # its default merge tolerance (1e-7) is refused for a case written with 6 digits (the default)
             run_application(openfoam, "reconstructParMesh", dest, "-constant", "-mergeTol", "1e-6")
         reconstruct(dest, openfoam, time_name)

@@ -31,7 +31,6 @@ class TimedSteps:
 
     def __call__(self, cfg: Any, work_dir: Path, env_id: int) -> Any:
         if self.inner is None:
-
             env = FoamCaseEnv(cfg, work_dir=work_dir, env_id=env_id)
         else:
             env = self.inner(cfg, work_dir, env_id)

@@ -34,6 +34,5 @@ def make_backend(
 
         return LocalBackend(cfg, num_envs, pool, work_dir, make_env=make_env)
     if name == "ray":
-
         return RayBackend(cfg, num_envs, pool, work_dir, ray_address, make_env)
     raise ValueError(f"backend must be one of {BACKENDS}, got {name!r}")

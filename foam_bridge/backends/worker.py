@@ -83,7 +83,6 @@ class EnvHost:
             if self.make_env is not None:
                 self.envs[env_id] = self.make_env(self.cfg, self.work_dir, env_id)
             else:
-
                 self.envs[env_id] = FoamCaseEnv(self.cfg, work_dir=self.work_dir, env_id=env_id)
         return self.envs[env_id]
 

@@ -151,7 +151,6 @@ def _final_text(summary: dict[str, Any]) -> str:
 
 
 def _fresh_plan(args: argparse.Namespace) -> TrainPlan:
-
     values = _read_config_file(args.config) if args.config else {}
     values.update(_flag_overrides(args))
     try:
@@ -197,7 +196,6 @@ def _sweep_agents(values: dict[str, Any], flags: set[str], items: list[tuple[str
 
 
 def _resume_plan(args: argparse.Namespace) -> TrainPlan:
-
     fixed = ("config", "network", "seed", "seeds", "sweep", "out")
     changed = [flag for flag in fixed if getattr(args, flag) is not None]
     changed += [name for name in _flag_overrides(args) if name != "total_steps"]
@@ -246,7 +244,6 @@ def sweep_item(text: str) -> tuple[str, tuple[float, ...]]:
 
 
 def _read_config_file(path: str) -> dict[str, Any]:
-
     try:
         values = read_json(path)
     except ValueError as err:

@@ -166,7 +166,6 @@ def evaluate_run(run_path: Path, episodes: int = 32, stochastic: bool = False, s
                       base.speed[0], dt=float(params.dt), v_threshold=float(params.v_threshold),
                       fixed_point=P_MINUS)
     if "aggregate" in report:
-
         plot_performance_profile(Path(run_path) / PROFILE_FILE, [a["mean_return"] for a in report["agents"]])
         report["profile_plot"] = PROFILE_FILE
     atomic_write_json(_named(run_path, EVAL_FILE, suffix), report)

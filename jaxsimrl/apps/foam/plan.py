@@ -125,7 +125,6 @@ def _check_no_anneal(ppo: Any) -> None:
 # ---- the plan: everything resolved before anything heavy starts (a jaxsimrl.apps.foam.training.FoamPlan)
 # ----
 def fresh_plan(args: argparse.Namespace) -> FoamPlan:
-
     extra = _read_config(args.config) if args.config else {}
     num_envs = args.num_envs or args.pool or 2
     episodes = args.episodes or 2000
@@ -347,7 +346,6 @@ def _user_case(cfg: Any, args: argparse.Namespace, extra: dict[str, Any]) -> Any
 
 
 def resume_plan(args: argparse.Namespace) -> FoamPlan:
-
     fixed = ["config", "num_envs", "mesh_scale", "step_height", "max_iterations", "case", "family", "reward",
              "seed",
              "out", "init_from", "init_action", "confirm_alpha_u", "relax_k_omega", *OBSERVATION_FLAGS]
@@ -393,7 +391,6 @@ def resume_plan(args: argparse.Namespace) -> FoamPlan:
 
 
 def _read_config(path: str) -> dict[str, Any]:
-
     try:
         values = read_json(path)
     except ValueError as err:

@@ -85,7 +85,6 @@ def _tuple(values: list[float] | None) -> tuple[float, ...] | None:
 
 
 def _check_openfoam() -> None:
-
     try:
         find_openfoam()
     except OpenFOAMNotFoundError as err:

@@ -138,7 +138,6 @@ def register(subparsers: Any) -> None:
 
 
 def _config(args: argparse.Namespace) -> Any:
-
     convergence = TRAIN_CONVERGENCE if args.criterion == "train" else TEST_CONVERGENCE
     if args.alpha_t is not None and args.relax_k_omega is not None:
         fail("--alpha-t and --relax-k-omega both set the k/omega factor: give one")
@@ -164,7 +163,6 @@ def _conditions(args: argparse.Namespace) -> list[tuple[float, float]]:
 
 
 def _check_openfoam() -> None:
-
     try:
         find_openfoam()
     except OpenFOAMNotFoundError as err:
@@ -199,7 +197,6 @@ def run_grid_foam(args: argparse.Namespace) -> int:
     total = len(args.alpha_u) * len(args.alpha_p) * len(args.alpha_t or [None]) * len(conditions)
     finished: list[Any] = []
     with RunProgress("grid-foam") as progress:
-
         def on_cell(cell: Any) -> None:
             finished.append(cell)
             write_grid_csv(finished, out / "grid.csv")  # in finishing order until the grid is complete
@@ -248,7 +245,6 @@ def _plot_conditions(cells: list[Any], cfg: Any, args: argparse.Namespace, out: 
 
 
 def _best_line(cells: list[Any]) -> str:
-
     best = best_cell(cells)
     names = ("alpha_u", "alpha_p", "alpha_t")
     return ("best: " + " ".join(f"{n}={f:g}" for n, f in zip(names, best.factors, strict=False))

@@ -20,7 +20,6 @@ class References:
     of every run's final U field against its (geometry, velocity)'s reference."""
 
     def __init__(self, spec: EvalSpec, baseline: Baseline | None, cfg: FoamEnvConfig) -> None:
-
         self.iterations = spec.reference_iterations
         self.factors = as_action(cfg, baseline.factors if baseline is not None else TUTORIAL_DEFAULTS)
         self.cache = None if spec.reference_cache is None else ReferenceCache(spec.reference_cache)

@@ -165,7 +165,6 @@ class CaseSolver:
         mp.current_process()._config.pop("daemon", None)  # type: ignore[attr-defined]
 
     def reset(self, case: str, out: str, log: str, options: Mapping[str, Any]) -> dict[str, Any]:
-
         target = Path(out)
         kill_processes_under(target)  # what a lost worker's solve left running here (on this node)
         shutil.rmtree(target, ignore_errors=True)  # its partial output: solve needs an empty directory

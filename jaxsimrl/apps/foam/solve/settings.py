@@ -67,7 +67,6 @@ class CheckedCase:
     info: Any
 
     def __call__(self, cfg: FoamEnvConfig, work_dir: Path, env_id: int) -> Any:
-
         return FoamCaseEnv(cfg, work_dir=work_dir, env_id=env_id, base=(self.directory, self.info))
 
 
@@ -145,7 +144,6 @@ def not_applicable(policy_cfg: FoamEnvConfig, settings: CaseSettings,
 
 
 def _factor(tree: Any, name: str) -> float | None:
-
     try:
         value = foamdict.lookup(tree, name) if isinstance(tree, dict) else None
         value = value[-1] if isinstance(value, list | tuple) else value
