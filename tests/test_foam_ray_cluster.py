@@ -159,6 +159,13 @@ def solver_pids(run_dir: Any) -> list[int]:
     return [int(pid) for pid in found.stdout.split()]
 
 
+#: How long a solver may outlive close(): a Ray actor's kill reaches its solver's process group
+#: asynchronously, and on a loaded 2-core machine a solver was seen running just after close() returned
+#: (5 of 8 runs on 2026-12-04, main before this change included; gone within 5 s). The project's bar for a
+#: stopped run is "no solver after 5 s".
+CLOSE_GONE_S = 5.0
+
+
 def wait_gone(pids: list[int], seconds: float = 15.0) -> list[int]:
     """The pids still alive after waiting up to ``seconds`` for them to exit."""
     deadline = time.monotonic() + seconds
@@ -259,7 +266,7 @@ def test_a_lost_node_ends_its_episodes_and_the_batch_goes_on_with_the_survivor(t
             assert seen["solvers"] and not wait_gone(seen["solvers"])  # the lost node's solver died too
         finally:
             bounded(STEP_BOUND_S, env.close)
-        assert not solver_pids(tmp_path)
+        assert not wait_gone(solver_pids(tmp_path), CLOSE_GONE_S)
 
 
 @pytest.mark.slow  # a Ray cluster, nodes killed
@@ -289,7 +296,7 @@ def test_a_node_that_joined_later_takes_the_replacement_and_no_node_left_is_one_
                     step(env)
         finally:
             bounded(STEP_BOUND_S, env.close)
-        assert not solver_pids(tmp_path)
+        assert not wait_gone(solver_pids(tmp_path), CLOSE_GONE_S)
 
 
 def closed_port() -> int:
