@@ -1,5 +1,5 @@
 """How far two converged runs of pitzDaily are apart, and how that scales with the criterion: the
-measurements behind the tolerance rule of jaxsimrl.solve.agreement.
+measurements behind the tolerance rule of jaxsimrl.apps.foam.solve.agreement.
 
     .venv/bin/python benchmarks/bench_agreement.py --out /tmp/agreement
 
@@ -28,9 +28,9 @@ import shutil
 from pathlib import Path
 
 from foam_bridge.export import latest_time
-from jaxsimrl.solve import solve_case
-from jaxsimrl.solve.agreement import field_difference, function_object_differences
-from jaxsimrl.solve.own import OwnProcess
+from jaxsimrl.apps.foam.solve import solve_case
+from jaxsimrl.apps.foam.solve.agreement import field_difference, function_object_differences
+from jaxsimrl.apps.foam.solve.own import OwnProcess
 
 TUTORIAL = Path("/usr/share/doc/openfoam-examples/examples/incompressible/simpleFoam/pitzDaily")
 FIELDS = ("U", "p", "k", "epsilon")

@@ -46,7 +46,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from foam_bridge.atomic import atomic_write_text  # noqa: E402
+from atomicfile import atomic_write_text  # noqa: E402
 from foam_bridge.config import FoamEnvConfig  # noqa: E402
 from foam_bridge.standin import DETREND, Profile, StandIn  # noqa: E402
 from foam_bridge.timing import TimedSteps  # noqa: E402

@@ -19,7 +19,7 @@ import tempfile
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-from jaxsimrl.solve.own import OwnRun, run_own
+from jaxsimrl.apps.foam.solve.own import OwnRun, run_own
 
 TUTORIALS = Path("/usr/share/doc/openfoam-examples/examples/incompressible/simpleFoam")
 

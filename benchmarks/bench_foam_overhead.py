@@ -5,7 +5,7 @@ criterion), it alternates ``--repeats`` times:
 
 - ``env``: one FoamCaseEnv episode, a pause every ``--interval`` iterations;
 - ``uninterrupted``: one simpleFoam run of the same episode case, start to end, with the same state
-  function objects but no pause (foam_bridge.case.make_uninterrupted);
+  function objects but no pause (foam_bridge.episode_case.make_uninterrupted);
 - ``plain``: the same without any function object (the stock way to run the case).
 
 Reported (medians over repeats, all runs of one repeat measured back to back): wall times, the
@@ -27,7 +27,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from foam_bridge import case as foam_case
+from foam_bridge import episode_case, template
 from foam_bridge.config import FOLLOW_ALPHA_U, U_REF, FoamEnvConfig
 from foam_bridge.env import FoamCaseEnv
 from foam_bridge.logparse import LogParser
@@ -52,9 +52,9 @@ def run_env_episode(env: FoamCaseEnv) -> dict[str, float]:
 
 def run_reference(env: FoamCaseEnv, directory: Path, keep_functions: bool) -> dict[str, float]:
     """simpleFoam start to end on a fresh copy of the episode case, no pause."""
-    foam_case.write_episode_case(env.base, directory, env.cfg, U_REF, env.case_info)
-    foam_case.make_uninterrupted(directory, env.cfg, *ACTION, functions=keep_functions)
-    parser = LogParser(foam_case.CELLS_FUNCTION, foam_case.INLET_FUNCTION)
+    episode_case.write_episode_case(env.base, directory, env.cfg, U_REF, env.case_info)
+    episode_case.make_uninterrupted(directory, env.cfg, *ACTION, functions=keep_functions)
+    parser = LogParser(episode_case.CELLS_FUNCTION, episode_case.INLET_FUNCTION)
     code, wall = run_to_end(directory, env.openfoam, parser, timeout_s=1800)
     return {"wall_s": wall, "iterations": parser.converged_at or parser.completed, "exit_code": code}
 
@@ -67,7 +67,7 @@ def bench_mesh(mesh_scale: float, repeats: int, interval: int, work: Path,
     env = FoamCaseEnv(cfg)
     runs: dict[str, list[dict]] = {"env": [], "uninterrupted": [], "plain": []}
     try:
-        cells = foam_case.cell_count(env.base)
+        cells = template.cell_count(env.base)
         for _ in range(repeats):
             runs["env"].append(run_env_episode(env))
             runs["uninterrupted"].append(run_reference(env, work / "reference", keep_functions=True))

@@ -19,7 +19,7 @@ import tempfile
 from pathlib import Path
 
 from foam_bridge.fields import final_field, relative_l2
-from jaxsimrl.solve.own import run_own
+from jaxsimrl.apps.foam.solve.own import run_own
 
 TUTORIALS = Path("/usr/share/doc/openfoam-examples/examples/incompressible/simpleFoam")
 #: The fields compared unless --fields names others.

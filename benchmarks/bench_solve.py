@@ -3,8 +3,8 @@
     .venv/bin/python benchmarks/bench_solve.py pitzDaily airFoil2D backwardFacingStep2D --out /tmp/bench
 
 (``--policy RUN`` solves with a train-foam run's policy instead of the shipped controller; ``--controller
-residual-rule`` or ``bandit`` with a no-training rule, jaxsimrl.solve.rules; ``--compare-constant U P T``
-also runs those constant factors, a third solver beside the two: wall times are then shared three ways
+residual-rule`` or ``bandit`` with a no-training rule, jaxsimrl.apps.foam.solve.rules; ``--compare-constant U
+P T`` also runs those constant factors, a third solver beside the two: wall times are then shared three ways
 on a 2-core machine, iterations are not.)
 
 Prints one row per case: iterations and wall time of the controlled run and of the case's own settings,
@@ -21,9 +21,9 @@ import json
 import shutil
 from pathlib import Path
 
-from jaxsimrl.solve import solve_case
-from jaxsimrl.solve.agreement import summary_line
-from jaxsimrl.solve.rules import RULES
+from jaxsimrl.apps.foam.solve import solve_case
+from jaxsimrl.apps.foam.solve.agreement import summary_line
+from jaxsimrl.apps.foam.solve.rules import RULES
 
 TUTORIALS = Path("/usr/share/doc/openfoam-examples/examples/incompressible/simpleFoam")
 

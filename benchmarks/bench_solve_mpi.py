@@ -3,9 +3,9 @@
     python benchmarks/bench_solve_mpi.py OUT_JSON WORK CASE...
 
 Per case: ``jaxsimrl solve CASE --np 2 --compare`` (its comparison: the case's own settings on 2 ranks,
-after the controlled run on a 2-core machine), and the case's own settings serial (jaxsimrl.solve.own).
-Records iterations and walls of the three runs, and the agreement of the --np 2 result with the serial
-run's fields (jaxsimrl.solve.agreement, --compare's tolerance).
+after the controlled run on a 2-core machine), and the case's own settings serial
+(jaxsimrl.apps.foam.solve.own). Records iterations and walls of the three runs, and the agreement of the --np
+2 result with the serial run's fields (jaxsimrl.apps.foam.solve.agreement, --compare's tolerance).
 """
 
 from __future__ import annotations
@@ -22,8 +22,8 @@ from typing import Any
 
 def measure(case: Path, work: Path) -> dict[str, Any]:
     """One case's numbers (see the module docstring)."""
-    from jaxsimrl.solve.agreement import compare_results
-    from jaxsimrl.solve.own import run_own
+    from jaxsimrl.apps.foam.solve.agreement import compare_results
+    from jaxsimrl.apps.foam.solve.own import run_own
 
     out = work / f"{case.name}.np2"
     started = time.monotonic()

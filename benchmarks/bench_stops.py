@@ -31,7 +31,7 @@ from pathlib import Path
 
 from foamlib import FoamFile
 
-from foam_bridge import case as foam_case
+from foam_bridge import template
 from foam_bridge.backends.reaper import processes_under
 
 JAXSIMRL = str(Path(sys.executable).with_name("jaxsimrl"))
@@ -41,9 +41,9 @@ INTERVAL = 100
 
 def user_step(dest: Path, mesh_scale: float) -> Path:
     """The built-in step as a user's case (SIMPLEC, its own factors and residualControl), refined."""
-    shutil.copytree(foam_case.TEMPLATE_DIR, dest)
+    shutil.copytree(template.TEMPLATE_DIR, dest)
     with FoamFile(dest / "system" / "meshParameters") as params:
-        params.update(foam_case.mesh_parameters(mesh_scale, 0.0127))
+        params.update(template.mesh_parameters(mesh_scale, 0.0127))
     solution = dest / "system" / "fvSolution"
     solution.write_text(solution.read_text()
                         + '\nrelaxationFactors { fields { p 0.8; } equations { U 0.9; ".*" 0.8; } }\n')

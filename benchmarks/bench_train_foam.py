@@ -33,7 +33,7 @@ import numpy as np
 from foam_bridge.batched import BatchedFoamEnv
 from foam_bridge.config import FoamEnvConfig
 from jaxsimrl.agents.ppo import PPOConfig, make_train
-from jaxsimrl.cli.foam_plan import foam_ppo_defaults
+from jaxsimrl.apps.foam.plan import foam_ppo_defaults
 from jaxsimrl.envs.host import HostVecEnv
 
 

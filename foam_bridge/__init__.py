@@ -14,7 +14,11 @@ gymnasium envs), a user's case's own MDP (``case_defaults``), the episode pool (
 queue of ``EpisodeJob``s, each with its own reset options and controller, on the local worker pool),
 the constant-factor grid study (``run_grid`` ...), ``export_case`` (an episode's case as a plain
 OpenFOAM case), case families (``build_family``: N variants of a case, varied in speed, angle,
-viscosity, mesh and initial field, with ``sample_variations``) and the errors.
+viscosity, mesh and initial field, with ``sample_variations``) and the errors; then what an
+application built on the bridge (jaxsimrl's OpenFOAM application) drives it with: the worker backends and
+their requests, the asynchronous batch, the case checks, MPI decomposition and reconstruction, the log
+parser, the episode records and the public module ``foamdict`` (OpenFOAM dictionaries, as foamDictionary
+expands them). jaxsimrl imports nothing else of foam_bridge (tests/test_plugin_boundary.py).
 Modules whose top says "internal" are the machinery behind these names; their contents may change.
 """
 
@@ -36,37 +40,73 @@ if ENV_ID not in registry:
 
 #: The module that defines each public name (imported on first access of one of its names).
 _HOMES: dict[str, tuple[str, ...]] = {
-    "config": ("FoamEnvConfig", "ACTION_NAMES", "BUILTIN_INLET_VELOCITY", "FOLLOW_ALPHA_U", "K_OMEGA_ACTION",
-               "MESH_SCALE_USABLE_MIN", "OBSERVATION_BOUND", "PAPER_INLET_TURBULENCE", "REWARDS",
-               "SIMPLE_VARIANTS", "STEP_HEIGHT_H", "TEST_CONVERGENCE", "TRAIN_CONVERGENCE", "U_REF",
-               "failure_reward"),
-    "env": ("FoamCaseEnv", "FAILURES", "OUTCOMES"),
+    "config": (
+        "ACTION_NAMES", "BUILTIN_INLET_VELOCITY", "BUILTIN_RELAX_K_OMEGA", "FOLLOW_ALPHA_U",
+        "K_OMEGA_ACTION", "MESH_SCALE_USABLE_MIN", "NEVER_CONVERGED", "OBSERVATION_BOUND",
+        "PAPER_INLET_TURBULENCE", "REWARDS", "SIMPLE_VARIANTS", "STEP_HEIGHT_H", "TEST_CONVERGENCE",
+        "TRAIN_CONVERGENCE", "U_REF", "FoamEnvConfig", "failure_reward", "without_convergence_test",
+    ),
+    "env": ("CASE_STOP", "FAILURES", "OUTCOMES", "FoamCaseEnv"),
     "batched": ("BatchedFoamEnv",),
     "gym_envs": ("RelaxationControlEnv", "RelaxationControlVecEnv"),
-    "backends": ("BACKENDS", "make_backend"),
-    "user_case": ("case_defaults",),
-    "grid": ("GridCell", "best_cell", "grid_config", "plot_grid", "read_grid_csv", "run_grid",
-             "write_grid_csv"),
-    "episodes": ("EpisodeJob", "EpisodeRun", "run_episodes"),
-    "export": ("export_case",),
-    "family": ("FamilyCase", "VARIATION_NAMES", "Variation", "build_family", "read_manifest",
-               "sample_variations"),
+    "backends": ("BACKENDS", "BAD_INPUT_ERRORS", "Reply", "Request", "make_backend", "validate_pool"),
+    "user_case": ("CASE_DEFAULT_FIELDS", "case_defaults"),
+    "grid": (
+        "Condition", "GridCell", "best_cell", "grid_config", "plot_grid", "plot_grid_slices",
+        "read_grid_csv", "run_grid", "write_grid_csv",
+    ),
+    "episodes": (
+        "ConstantFactors", "EpisodeJob", "EpisodeRun", "StatelessController", "StepRecord", "run_episodes",
+    ),
+    "export": ("POST_PROCESSING", "export_case", "latest_time"),
+    "family": (
+        "VARIATION_NAMES", "FamilyCase", "Variation", "build_family", "read_manifest", "sample_variations",
+    ),
     "openfoam": ("find_openfoam",),
-    "logparse": ("criterion_distance",),
-    "errors": ("CaseError", "ClusterError", "OpenFOAMNotFoundError", "PoolLostError", "SolverFailure"),
+    "logparse": ("LogParser", "SolverCost", "criterion_distance", "field_residual", "solved_field_names"),
+    "errors": (
+        "CaseError", "ClusterError", "NoResidualControl", "OpenFOAMNotFoundError", "PoolLostError",
+        "SolverFailure",
+    ),
+    "async_batch": ("AsyncFoamEnv",),
+    "records": ("COLUMNS", "EpisodeRecord", "read_rows", "rows_to_csv"),
+    "episode_case": ("CaseInfo",),
+    "family_env": ("FamilyFactory",),
+    "backends.local": ("LocalBackend",),
+    "timing": ("TimedSteps",),
+    "spaces": ("action_spec", "factors_of", "shares_of"),
+    "base_case": ("check_case", "check_case_files", "declared_patches"),
+    "template": ("copy_case", "run_application"),
+    "parallel": (
+        "decompose", "mpirun_path", "processor_count", "reconstruct", "reconstruct_into",
+        "reconstructed_case",
+    ),
+    "backends.reaper": ("kill_processes_under",),
+    "fields": ("relative_l2", "time_directories"),
+    "solver": ("run_to_end",),
 }
 _EXPORTS = {name: f"foam_bridge.{module}" for module, names in _HOMES.items() for name in names}
+#: Public modules: ``from foam_bridge import foamdict`` (imported as the package's submodule).
+_MODULES = ("foamdict",)
 
 __all__ = [
-    "ACTION_NAMES", "BACKENDS", "BUILTIN_INLET_VELOCITY", "ENV_ID", "FAILURES", "FOLLOW_ALPHA_U",
-    "K_OMEGA_ACTION", "MESH_SCALE_USABLE_MIN", "OBSERVATION_BOUND", "OUTCOMES", "PAPER_INLET_TURBULENCE",
-    "REWARDS", "SIMPLE_VARIANTS", "STEP_HEIGHT_H", "TEST_CONVERGENCE", "TRAIN_CONVERGENCE", "U_REF",
-    "VARIATION_NAMES", "BatchedFoamEnv", "CaseError", "ClusterError", "EpisodeJob", "EpisodeRun",
-    "FamilyCase", "FoamCaseEnv", "FoamEnvConfig", "GridCell", "OpenFOAMNotFoundError", "PoolLostError",
-    "RelaxationControlEnv", "RelaxationControlVecEnv", "SolverFailure", "Variation", "best_cell",
-    "build_family", "case_defaults", "criterion_distance", "export_case", "failure_reward", "find_openfoam",
-    "grid_config", "make_backend", "plot_grid", "read_grid_csv", "read_manifest", "run_episodes", "run_grid",
-    "sample_variations", "write_grid_csv",
+    "ACTION_NAMES", "AsyncFoamEnv", "BACKENDS", "BAD_INPUT_ERRORS", "BUILTIN_INLET_VELOCITY",
+    "BUILTIN_RELAX_K_OMEGA", "BatchedFoamEnv", "CASE_DEFAULT_FIELDS", "CASE_STOP", "COLUMNS", "CaseError",
+    "CaseInfo", "ClusterError", "Condition", "ConstantFactors", "ENV_ID", "EpisodeJob", "EpisodeRecord",
+    "EpisodeRun", "FAILURES", "FOLLOW_ALPHA_U", "FamilyCase", "FamilyFactory", "FoamCaseEnv",
+    "FoamEnvConfig", "GridCell", "K_OMEGA_ACTION", "LocalBackend", "LogParser", "MESH_SCALE_USABLE_MIN",
+    "NEVER_CONVERGED", "NoResidualControl", "OBSERVATION_BOUND", "OUTCOMES", "OpenFOAMNotFoundError",
+    "PAPER_INLET_TURBULENCE", "POST_PROCESSING", "PoolLostError", "REWARDS", "RelaxationControlEnv",
+    "RelaxationControlVecEnv", "Reply", "Request", "SIMPLE_VARIANTS", "STEP_HEIGHT_H", "SolverCost",
+    "SolverFailure", "StatelessController", "StepRecord", "TEST_CONVERGENCE", "TRAIN_CONVERGENCE",
+    "TimedSteps", "U_REF", "VARIATION_NAMES", "Variation", "action_spec", "best_cell", "build_family",
+    "case_defaults", "check_case", "check_case_files", "copy_case", "criterion_distance", "declared_patches",
+    "decompose", "export_case", "factors_of", "failure_reward", "field_residual", "find_openfoam",
+    "foamdict", "grid_config", "kill_processes_under", "latest_time", "make_backend", "mpirun_path",
+    "plot_grid", "plot_grid_slices", "processor_count", "read_grid_csv", "read_manifest", "read_rows",
+    "reconstruct", "reconstruct_into", "reconstructed_case", "relative_l2", "rows_to_csv", "run_application",
+    "run_episodes", "run_grid", "run_to_end", "sample_variations", "shares_of", "solved_field_names",
+    "time_directories", "validate_pool", "without_convergence_test", "write_grid_csv",
 ]
 
 
@@ -85,14 +125,21 @@ def __dir__() -> list[str]:
 
 
 if TYPE_CHECKING:  # what type checkers and editors see; at run time __getattr__ loads these
-    from foam_bridge.backends import BACKENDS, make_backend
+    from foam_bridge import foamdict
+    from foam_bridge.async_batch import AsyncFoamEnv
+    from foam_bridge.backends import BACKENDS, BAD_INPUT_ERRORS, Reply, Request, make_backend, validate_pool
+    from foam_bridge.backends.local import LocalBackend
+    from foam_bridge.backends.reaper import kill_processes_under
+    from foam_bridge.base_case import check_case, check_case_files, declared_patches
     from foam_bridge.batched import BatchedFoamEnv
     from foam_bridge.config import (
         ACTION_NAMES,
         BUILTIN_INLET_VELOCITY,
+        BUILTIN_RELAX_K_OMEGA,
         FOLLOW_ALPHA_U,
         K_OMEGA_ACTION,
         MESH_SCALE_USABLE_MIN,
+        NEVER_CONVERGED,
         OBSERVATION_BOUND,
         PAPER_INLET_TURBULENCE,
         REWARDS,
@@ -103,17 +150,27 @@ if TYPE_CHECKING:  # what type checkers and editors see; at run time __getattr__
         U_REF,
         FoamEnvConfig,
         failure_reward,
+        without_convergence_test,
     )
-    from foam_bridge.env import FAILURES, OUTCOMES, FoamCaseEnv
-    from foam_bridge.episodes import EpisodeJob, EpisodeRun, run_episodes
+    from foam_bridge.env import CASE_STOP, FAILURES, OUTCOMES, FoamCaseEnv
+    from foam_bridge.episode_case import CaseInfo
+    from foam_bridge.episodes import (
+        ConstantFactors,
+        EpisodeJob,
+        EpisodeRun,
+        StatelessController,
+        StepRecord,
+        run_episodes,
+    )
     from foam_bridge.errors import (
         CaseError,
         ClusterError,
+        NoResidualControl,
         OpenFOAMNotFoundError,
         PoolLostError,
         SolverFailure,
     )
-    from foam_bridge.export import export_case
+    from foam_bridge.export import POST_PROCESSING, export_case, latest_time
     from foam_bridge.family import (
         VARIATION_NAMES,
         FamilyCase,
@@ -122,16 +179,39 @@ if TYPE_CHECKING:  # what type checkers and editors see; at run time __getattr__
         read_manifest,
         sample_variations,
     )
+    from foam_bridge.family_env import FamilyFactory
+    from foam_bridge.fields import relative_l2, time_directories
     from foam_bridge.grid import (
+        Condition,
         GridCell,
         best_cell,
         grid_config,
         plot_grid,
+        plot_grid_slices,
         read_grid_csv,
         run_grid,
         write_grid_csv,
     )
     from foam_bridge.gym_envs import RelaxationControlEnv, RelaxationControlVecEnv
-    from foam_bridge.logparse import criterion_distance
+    from foam_bridge.logparse import (
+        LogParser,
+        SolverCost,
+        criterion_distance,
+        field_residual,
+        solved_field_names,
+    )
     from foam_bridge.openfoam import find_openfoam
-    from foam_bridge.user_case import case_defaults
+    from foam_bridge.parallel import (
+        decompose,
+        mpirun_path,
+        processor_count,
+        reconstruct,
+        reconstruct_into,
+        reconstructed_case,
+    )
+    from foam_bridge.records import COLUMNS, EpisodeRecord, read_rows, rows_to_csv
+    from foam_bridge.solver import run_to_end
+    from foam_bridge.spaces import action_spec, factors_of, shares_of
+    from foam_bridge.template import copy_case, run_application
+    from foam_bridge.timing import TimedSteps
+    from foam_bridge.user_case import CASE_DEFAULT_FIELDS, case_defaults

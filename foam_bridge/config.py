@@ -12,8 +12,9 @@ worker processes) and validated by :meth:`FoamEnvConfig.validate`, which raises 
 construction. :meth:`FoamEnvConfig.to_json` / :meth:`FoamEnvConfig.from_json` are its one JSON codec (the
 "foam" section of a train-foam run's config.json).
 
-Over 400 lines because it is one dataclass with its validation, its derived properties and its codec,
-which belong together; the reward helpers below are a few lines each.
+Over 450 lines (~550) because it is one dataclass whose docstring documents each of its ~45 fields (~190
+lines), with its validation, its derived properties and its codec, which belong together; the reward
+helpers below are a few lines each.
 """
 
 from __future__ import annotations
@@ -185,7 +186,7 @@ class FoamEnvConfig:
             factors in force whatever the action (None: never). A change of alpha_u there changes the
             discrete problem the solver iterates on and the run re-converges: airFoil2D's own factors
             jittered by +-0.03 share every 50 iterations took 569 iterations against 292
-            (experiments/controller/family-v3-setup/jitter.json); jaxsimrl.solve.rules freezes at 1.
+            (experiments/controller/family-v3-setup/jitter.json); jaxsimrl.apps.foam.solve.rules freezes at 1.
         reward: the cost whose increase is the negative reward of a step, one of REWARDS:
             "iterations" (default, the paper's: SIMPLE iterations K), "linear-iterations" (the inner
             iterations of every linear solve, all fields: what one SIMPLE iteration costs changes with

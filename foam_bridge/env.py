@@ -45,9 +45,10 @@ K+1 .. K+interval, exactly as in the paper's restart-based MDP (tested: the resi
 already change with the new factors). The first action of an episode is read at solver start-up.
 The state of iteration K is printed by stock function objects before the pause, in full precision.
 
-Why one module of ~500 lines: it is one class, the episode's state machine (reset, step, the
-solver's faults, the confirmation restart, the episode record), whose methods share its state; the
-case files, the solver process and the log are in their own modules already.
+Why one module of ~530 lines: it is one class, the episode's state machine (reset, step, the
+solver's faults, the confirmation restart, the freeze near the criterion, the episode record), whose
+methods share its state; the case files, the solver process, the log and the action and observation
+boxes (foam_bridge.spaces) are in their own modules already.
 """
 
 from __future__ import annotations
@@ -68,8 +69,6 @@ import numpy as np
 
 from foam_bridge import base_case, episode_case, template
 from foam_bridge.config import (
-    ACTION_NAMES,
-    OBSERVATION_BOUND,
     FoamEnvConfig,
     cost_per_iteration,
     failure_reward,
@@ -80,7 +79,15 @@ from foam_bridge.logparse import LogParser, criterion_distance, field_residual
 from foam_bridge.openfoam import find_openfoam
 from foam_bridge.records import EpisodeRecord
 from foam_bridge.solver import DIVERGED, EXITED, HUNG, MISSED, PAUSED, FoamSolver
-from foam_bridge.spaces import BoxSpec, clip_to_box
+from foam_bridge.spaces import (
+    BoxSpec,
+    action_spec,
+    action_values,
+    bounded_observation,
+    factors_of,
+    observation_spec,
+    shares_of,
+)
 
 #: Every value of ``info["outcome"]``.
 OUTCOMES = ("running", "converged", "truncated", "crashed", "diverged", "hung")
@@ -125,8 +132,9 @@ class FoamCaseEnv:
 
     ``step(action) -> (obs, reward, terminated, truncated, info)``; ``info`` has "iterations" (K),
     "residuals" ({field: latest initial residual}), "outcome" (one of OUTCOMES), "cause" (failure text,
-    CASE_STOP and the function object's name, or ""), "inlet_velocity", and "episode" (the episode
-    record) on the step that ended the episode.
+    CASE_STOP and the function object's name, or ""), "inlet_velocity", "factors" (those in force
+    over the step: the action's, or the held ones once ``freeze_decades`` froze them), and "episode"
+    (the episode record) on the step that ended the episode.
     ``terminated`` is True on every episode end, the ``max_iterations`` cap included; ``truncated`` is
     always False (the env has no time limit). Stepping a finished episode raises ``RuntimeError`` (no
     auto-reset here).
@@ -222,7 +230,7 @@ class FoamCaseEnv:
         """Run ``interval`` SIMPLE iterations with the given factors; see the class docstring."""
         if self._done:
             raise RuntimeError("step() on a finished episode: call reset() first")
-        alpha = factors_of(self.cfg, _factors(action, self.cfg.action_size))
+        alpha = factors_of(self.cfg, action_values(action, self.cfg.action_size))
         if self._frozen:  # within freeze_decades of the criterion: the factors in force hold
             alpha = self._factors
         self._episode["actions"].append([float(a) for a in alpha])
@@ -497,35 +505,6 @@ class FoamCaseEnv:
         return code
 
 
-def _factors(action: Any, size: int = 2) -> np.ndarray:
-    """The action as ``size`` finite floats; a one-line ValueError otherwise."""
-    names = f"({', '.join(ACTION_NAMES[:size])})"
-    try:
-        alpha = np.asarray(action, dtype=float).reshape(size)
-    except (TypeError, ValueError):
-        raise ValueError(f"action: expected {names}, got {action!r}") from None
-    if not np.all(np.isfinite(alpha)):
-        raise ValueError(f"action: expected finite {names}, got {alpha.tolist()}")
-    return alpha
-
-
-def observation_spec(cfg: FoamEnvConfig) -> BoxSpec:
-    """Box of the observation (float32): the scaled state in [0, B], the log10 residual features in
-    [-B, B], then the progress and the factors in [0, B], B = OBSERVATION_BOUND."""
-    n, state = cfg.observation_size, int(cfg.observe_state)
-    features = cfg.residual_features * len(cfg.observed)
-    low = np.array([0.0] * state + [-OBSERVATION_BOUND] * features + [0.0] * (n - state - features),
-                   dtype=np.float32)
-    return BoxSpec(low=low, high=np.full(n, OBSERVATION_BOUND, dtype=np.float32), shape=(n,))
-
-
-def bounded_observation(values: np.ndarray) -> np.ndarray:
-    """float32, finite, every entry in [-OBSERVATION_BOUND, OBSERVATION_BOUND] (NaN -> the upper bound)."""
-    clean = np.nan_to_num(np.asarray(values, dtype=np.float64), nan=OBSERVATION_BOUND,
-                          posinf=OBSERVATION_BOUND, neginf=-OBSERVATION_BOUND)
-    return np.clip(clean, -OBSERVATION_BOUND, OBSERVATION_BOUND).astype(np.float32)
-
-
 def _claim_directory(root: Path) -> BinaryIO:
     """Create ``root`` and take the exclusive lock on its LOCK_FILE; returns the open lock file.
 
@@ -551,43 +530,3 @@ def _claim_directory(root: Path) -> BinaryIO:
             if os.path.samestat(os.fstat(lock.fileno()), os.stat(path)):
                 return lock
         lock.close()
-
-
-def action_spec(cfg: FoamEnvConfig) -> BoxSpec:
-    """Box of (alpha_u, alpha_p[, alpha_t]): ``[action_low, action_high]`` (float32); [0, 1] per factor
-    with ``action_share``."""
-    if cfg.action_share:
-        return BoxSpec(low=np.zeros(cfg.action_size, np.float32), high=np.ones(cfg.action_size, np.float32),
-                       shape=(cfg.action_size,))
-    return BoxSpec(low=np.asarray(cfg.action_low, dtype=np.float32),
-                   high=np.asarray(cfg.action_high, dtype=np.float32), shape=(cfg.action_size,))
-
-
-def factors_of(cfg: FoamEnvConfig, action: Any) -> np.ndarray:
-    """The factors an action sets, in the box: the action itself, or with ``action_share`` the point
-    that share of the way from action_low to action_high (shares clipped into [0, 1]), through
-    ``action_pivot`` at 0.5 where it is set."""
-    low, high = np.asarray(cfg.action_low, np.float64), np.asarray(cfg.action_high, np.float64)
-    if not cfg.action_share:
-        return clip_to_box(action, low, high)
-    share = np.clip(np.asarray(action, np.float64), 0.0, 1.0)
-    if cfg.action_pivot is None:
-        return clip_to_box(low + share * (high - low), low, high)
-    pivot = np.asarray(cfg.action_pivot, np.float64)
-    below, above = low + 2 * share * (pivot - low), pivot + (2 * share - 1) * (high - pivot)
-    return clip_to_box(np.where(share < 0.5, below, above), low, high)
-
-
-def shares_of(cfg: FoamEnvConfig, factors: Any) -> np.ndarray:
-    """The action that sets ``factors`` (the inverse of :func:`factors_of`; a fallback's own factors)."""
-    if not cfg.action_share:
-        return np.asarray(factors, np.float64)
-    low, high = np.asarray(cfg.action_low, np.float64), np.asarray(cfg.action_high, np.float64)
-    factors = np.clip(np.asarray(factors, np.float64), low, high)
-    if cfg.action_pivot is None:
-        return (factors - low) / np.where(high > low, high - low, 1.0)
-    pivot = np.asarray(cfg.action_pivot, np.float64)
-    below = 0.5 * (factors - low) / np.where(pivot > low, pivot - low, 1.0)
-    above = 0.5 + 0.5 * (factors - pivot) / np.where(high > pivot, high - pivot, 1.0)
-    return np.clip(np.where(factors < pivot, below, above), 0.0, 1.0)
-

@@ -35,9 +35,9 @@ from typing import Any
 import numpy as np
 from foamlib import FoamFile
 
+from atomicfile import atomic_write_text
 from foam_bridge import _family_fields as fields
 from foam_bridge import _family_mesh as mesh
-from foam_bridge.atomic import atomic_write_text
 from foam_bridge.openfoam import OpenFOAM, find_openfoam
 from foam_bridge.template import cell_count, copy_case, run_application
 

@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from foam_bridge.atomic import atomic_write_bytes, atomic_write_text
+from atomicfile import atomic_write_bytes, atomic_write_text
 from foam_bridge.config import K_OMEGA_ACTION, FoamEnvConfig
 from foam_bridge.episodes import EpisodeJob, EpisodeRun, check_pool, run_episodes
 

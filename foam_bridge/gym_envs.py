@@ -29,6 +29,7 @@ from gymnasium.vector.utils import batch_space
 
 from foam_bridge.batched import SEED_BOUND, BatchedFoamEnv
 from foam_bridge.config import FoamEnvConfig
+from foam_bridge.env import FoamCaseEnv
 from foam_bridge.spaces import BoxSpec
 
 __all__ = ["CONFIG_FIELDS", "RelaxationControlEnv", "RelaxationControlVecEnv", "box", "_config_from_kwargs"]
@@ -94,8 +95,6 @@ class RelaxationControlEnv(gymnasium.Env):
     metadata = {"render_modes": []}
 
     def __init__(self, render_mode: str | None = None, **config: Any) -> None:
-        from foam_bridge.env import FoamCaseEnv
-
         _no_render(render_mode)
         self.cfg = _config_from_kwargs(config)
         self._dir: str | None

@@ -47,6 +47,7 @@ from pathlib import Path
 
 from foam_bridge.errors import OpenFOAMNotFoundError
 from foam_bridge.openfoam import INSTALL_HINT, OpenFOAM
+from foam_bridge.template import run_application
 
 __all__ = ["DECOMPOSE_DICT", "decompose", "kill_session", "mpirun_path", "processor_count", "reconstruct",
            "reconstruct_into", "reconstructed_case", "session_processes", "solver_command"]
@@ -86,7 +87,6 @@ def decompose(case: Path, openfoam: OpenFOAM, ranks: int) -> None:
     """Decompose ``case`` into ``ranks`` subdomains (``decomposePar -force``): its own decomposeParDict
     when that one asks for ``ranks`` subdomains, else one that does (:func:`_write_decompose_dict`).
     decomposePar reads fvSolution: call it before the FIFO is #included. CaseError on failure."""
-    from foam_bridge.template import run_application
 
     _write_decompose_dict(case, ranks)
     run_application(openfoam, "decomposePar", case, "-force")
@@ -109,7 +109,6 @@ def _write_decompose_dict(case: Path, ranks: int) -> None:
 def reconstruct(case: Path, openfoam: OpenFOAM, time_name: str | None = None) -> None:
     """``reconstructPar`` of one time (default the latest) into ``case``'s top level. It reads fvSolution:
     ``case`` must not #include a FIFO. CaseError on failure."""
-    from foam_bridge.template import run_application
 
     which = ["-latestTime"] if time_name is None else ["-time", time_name]
     run_application(openfoam, "reconstructPar", case, *which)
@@ -162,8 +161,6 @@ def reconstruct_into(source: Path, dest: Path, openfoam: OpenFOAM, time_name: st
             links.append(dest / processor.name)
             links[-1].symlink_to(processor.resolve())
         if mesh:
-            from foam_bridge.template import run_application
-
             # its default merge tolerance (1e-7) is refused for a case written with 6 digits (the default)
             run_application(openfoam, "reconstructParMesh", dest, "-constant", "-mergeTol", "1e-6")
         reconstruct(dest, openfoam, time_name)

@@ -18,6 +18,8 @@ from typing import Any
 
 import numpy as np
 
+from foam_bridge.env import FoamCaseEnv
+
 __all__ = ["TimedSteps"]
 
 
@@ -29,8 +31,6 @@ class TimedSteps:
 
     def __call__(self, cfg: Any, work_dir: Path, env_id: int) -> Any:
         if self.inner is None:
-            from foam_bridge.env import FoamCaseEnv
-
             env = FoamCaseEnv(cfg, work_dir=work_dir, env_id=env_id)
         else:
             env = self.inner(cfg, work_dir, env_id)

@@ -17,5 +17,5 @@ for arg in "$@"; do
     fi
 done
 bash scripts/setup.sh
-.venv/bin/ruff check jaxsimrl foam_bridge tests benchmarks experiments docs
+.venv/bin/ruff check jaxsimrl foam_bridge atomicfile tests benchmarks experiments docs
 .venv/bin/python -m pytest -q -n 2 --dist loadfile ${args[@]+"${args[@]}"}

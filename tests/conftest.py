@@ -21,7 +21,7 @@ def _session_compilation_cache() -> None:
     JAX reads these variables when it is imported, and subprocesses (and pytest-xdist's workers) inherit
     them, so they all share one directory. It starts empty (a clean clone measures the same) and is
     removed at exit: nothing leaks to ~/.cache, and `jaxsimrl solve`'s own cache there
-    (jaxsimrl/cli/solve.py) is neither read nor written. A cached program is the one compiled, so
+    (jaxsimrl/apps/foam/cli/solve.py) is neither read nor written. A cached program is the one compiled, so
     results do not change (tests/test_ppo_training.py compares metrics exactly).
     """
     if os.environ.get("PYTEST_XDIST_WORKER"):  # the controller has set it up; share its directory

@@ -234,8 +234,8 @@ def test_a_failed_reset_is_a_non_transition_and_training_goes_on(trainer):
 def _plan(args: dict) -> Any:
     """The FoamPlan of ``args`` ({"episodes", "run", "resume"}) on the
     stand-in: the plan :func:`main_of_a_killed_run` runs in a process of its own."""
+    from jaxsimrl.apps.foam.training import FoamPlan
     from jaxsimrl.runs.run_dir import RunDir
-    from jaxsimrl.training.foam import FoamPlan
 
     run_path = Path(args["run"])
     record = RunDir.existing(run_path).read_config() if args["resume"] else {}
@@ -245,8 +245,8 @@ def _plan(args: dict) -> Any:
 
 
 def _train_foam(args: dict) -> dict:
+    from jaxsimrl.apps.foam.training import train_foam
     from jaxsimrl.runs.run_dir import RunDir
-    from jaxsimrl.training.foam import train_foam
 
     plan = _plan(args)
     return train_foam(plan, RunDir.existing(plan.run_path) if plan.resume else RunDir.create(plan.run_path))
@@ -260,7 +260,7 @@ def main_of_a_killed_run() -> None:
 def _per_env_episodes(run_path: Path, num_envs: int, up_to_update: int = 10**9) -> dict[int, list[tuple]]:
     """Each env's episodes in episodes.csv (those of updates up to ``up_to_update``), in order: (seed,
     iterations, outcome); the file is whole, in order, and holds no episode twice."""
-    from jaxsimrl.envs.foam_episodes import EPISODES_FILE, EpisodeLog
+    from jaxsimrl.apps.foam.episodes import EPISODES_FILE, EpisodeLog
 
     rows = EpisodeLog.load(run_path / EPISODES_FILE, up_to_update).rows
     assert [r["index"] for r in rows] == list(range(len(rows)))
@@ -326,7 +326,7 @@ def test_a_record_that_does_not_fit_the_learner_s_side_of_the_checkpoint_is_not_
     env the record has a step or reset in flight for must be one whose result the learner awaits."""
     from types import SimpleNamespace as Fake
 
-    from jaxsimrl.training.foam import _learner_mismatch
+    from jaxsimrl.apps.foam.training import _learner_mismatch
 
     vec = Fake(async_envs=3)
     record = {"envs": [{"obs": [0.5]}, {"obs": [1.0], "step": [0.5, 0.5]}, {"obs": [0.2], "ready": {}}],

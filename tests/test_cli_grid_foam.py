@@ -106,7 +106,7 @@ def test_check_factors_and_grid_config_cover_the_grid():
 
 @pytest.mark.parametrize(("extra", "height"), [((), 0.0127), (("--step-height", "0.0254"), 0.0254)])
 def test_step_height_reaches_the_grids_config(extra, height):
-    from jaxsimrl.cli.foam import _config
+    from jaxsimrl.apps.foam.cli.grid_foam import _config
     from jaxsimrl.cli.main import build_parser
 
     args = build_parser().parse_args(["grid-foam", *GOOD, *extra, "--out", "x"])
@@ -141,16 +141,15 @@ def test_csv_round_trip_and_best_cell(tmp_path):
 def test_a_grid_stopped_part_way_keeps_its_finished_cells(capsys, tmp_path, monkeypatch):
     """grid.csv after every cell: a Ctrl-C after two of four cells leaves those two on disk, and each
     finished cell is a line in a log (no live bar off a terminal)."""
-    import foam_bridge.grid
-    import jaxsimrl.cli.foam
+    import jaxsimrl.apps.foam.cli.grid_foam
 
     def two_cells_then_interrupted(*args, on_cell, **kwargs):
         on_cell(CELLS[1])
         on_cell(CELLS[0])
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(jaxsimrl.cli.foam, "_check_openfoam", lambda: None)
-    monkeypatch.setattr(foam_bridge.grid, "run_grid", two_cells_then_interrupted)
+    monkeypatch.setattr(jaxsimrl.apps.foam.cli.grid_foam, "_check_openfoam", lambda: None)
+    monkeypatch.setattr(jaxsimrl.apps.foam.cli.grid_foam, "run_grid", two_cells_then_interrupted)
     out = tmp_path / "out"
     argv = ("--alpha-u", "0.5", "0.9", "--alpha-p", "0.5", "0.9", "--out", str(out))
     code, err, stdout = run_cli(capsys, *argv)

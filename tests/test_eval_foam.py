@@ -20,8 +20,8 @@ from foam_marks import needs_openfoam
 from foam_bridge.config import TEST_CONVERGENCE, TRAIN_CONVERGENCE, FoamEnvConfig
 from foam_bridge.grid import GridCell, write_grid_csv
 from foam_bridge.logparse import solver_cost
+from jaxsimrl.apps.foam.config import foam_config_from_json, foam_config_to_json
 from jaxsimrl.cli.main import main
-from jaxsimrl.envs.foam_config import foam_config_from_json, foam_config_to_json
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 #: The run's case: SIMPLEC with k/omega 0.8 as the paper's code; a low cap keeps random runs short.
@@ -133,8 +133,8 @@ def saved_run(tmp_path_factory):
 
 @pytest.mark.parametrize("network", ["mlp", "lstm"])
 def test_controller_actions_depend_only_on_seed_uid_and_step(tmp_path, network):
-    from jaxsimrl.evaluation.foam_controllers import LearnedController, RandomController
-    from jaxsimrl.evaluation.foam_policy import load_foam_run
+    from jaxsimrl.apps.foam.evaluation.controllers import LearnedController, RandomController
+    from jaxsimrl.apps.foam.evaluation.policy import load_foam_run
     from jaxsimrl.policy import BatchActor
 
     run = load_foam_run(save_run(tmp_path / "run", network=network))
@@ -212,8 +212,8 @@ class ScriptedBackend:
 
 def _scripted(monkeypatch, backend, lengths, pool):
     from foam_bridge import episodes
-    from jaxsimrl.evaluation import foam_runner
-    from jaxsimrl.evaluation.foam_controllers import ConstantController
+    from jaxsimrl.apps.foam.evaluation import runner as foam_runner
+    from jaxsimrl.apps.foam.evaluation.controllers import ConstantController
 
     monkeypatch.setattr(episodes, "make_backend", lambda *args: backend)
     jobs = [foam_runner.Job(uid, "c", "h", 50.0, 0) for uid in range(len(lengths))]
@@ -239,8 +239,8 @@ def test_runner_stops_on_a_case_the_env_rejects(monkeypatch):
 
 
 def test_an_episode_keeps_its_uid_whatever_else_the_command_evaluates():
-    from jaxsimrl.evaluation.foam_eval import plan
-    from jaxsimrl.evaluation.foam_eval_spec import DEFAULT_CONTROLLERS
+    from jaxsimrl.apps.foam.evaluation.eval import plan
+    from jaxsimrl.apps.foam.evaluation.eval_spec import DEFAULT_CONTROLLERS
 
     repeats = {c: c in ("learned_stochastic", "random") for c in DEFAULT_CONTROLLERS}
     small = plan(["h"], [50.0], repeats, 2)
@@ -318,7 +318,7 @@ def test_bad_input_is_one_line_exit_2(capsys, tmp_path, saved_run, case):
 
 
 def test_best_constant_of_a_grid_csv_is_its_fastest_converged_cell(tmp_path):
-    from jaxsimrl.evaluation.foam_baseline import baseline_from_csv
+    from jaxsimrl.apps.foam.evaluation.baseline import baseline_from_csv
 
     cells = [GridCell(0.95, 0.95, 260, "converged", 1.0), GridCell(0.9, 0.95, 250, "converged", 1.0),
              GridCell(0.5, 0.5, 90, "crashed", 1.0), GridCell(0.7, 0.7, 1000, "truncated", 1.0)]
@@ -467,7 +467,7 @@ def _run_directly(cfg, uid, factors, case_copy):
 def test_a_subset_of_controllers_runs_only_those_and_the_same_episodes(evaluation, saved_run, tmp_path):
     from foam_bridge.config import without_convergence_test
     from foam_bridge.fields import relative_l2
-    from jaxsimrl.evaluation.foam_eval_spec import REFERENCE, episode_uid
+    from jaxsimrl.apps.foam.evaluation.eval_spec import REFERENCE, episode_uid
 
     full_out, full = evaluation
     out = tmp_path / "subset"
@@ -553,8 +553,8 @@ def test_a_reference_cache_reuses_a_reference_only_for_the_same_inputs(saved_run
 def test_the_reference_key_follows_the_case_files_and_not_where_they_run(tmp_path):
     import shutil
 
-    from foam_bridge.case import TEMPLATE_DIR
-    from jaxsimrl.evaluation.foam_reference_cache import reference_keys
+    from foam_bridge.template import TEMPLATE_DIR
+    from jaxsimrl.apps.foam.evaluation.reference_cache import reference_keys
 
     def reference_key(cfg, velocity, factors):
         return reference_keys(cfg, [velocity], factors)[velocity]
@@ -584,8 +584,8 @@ def test_the_no_training_rules_run_in_the_protocol_at_their_own_step_length(save
     box, each stepping at its own interval; the residual rule's run is the episode FoamCaseEnv gives when
     the rule acts on its residuals directly."""
     from foam_bridge.env import FoamCaseEnv
-    from jaxsimrl.evaluation.foam_eval_spec import episode_uid
-    from jaxsimrl.solve.rules import INTERVALS, ResidualRule
+    from jaxsimrl.apps.foam.evaluation.eval_spec import episode_uid
+    from jaxsimrl.apps.foam.solve.rules import INTERVALS, ResidualRule
 
     out = tmp_path / "rules"
     code = main(["eval-foam", str(saved_run), "--velocities", str(VELOCITY), "--step-height", "0.0127",

@@ -23,8 +23,8 @@ from foam_bridge.grid import (
     read_grid_csv,
     write_grid_csv,
 )
+from jaxsimrl.apps.foam.evaluation.family import family_best, family_best_json, grid_cap
 from jaxsimrl.cli.main import main
-from jaxsimrl.evaluation.family import family_best, family_best_json, grid_cap
 
 H, H2 = 0.0127, 0.0254
 
@@ -106,7 +106,7 @@ def test_conditions_round_trip_through_grid_csv_and_old_files_still_load(tmp_pat
 
 
 def test_eval_foams_baseline_of_a_family_grid_is_the_family_best(tmp_path):
-    from jaxsimrl.evaluation.foam_baseline import baseline_from_csv
+    from jaxsimrl.apps.foam.evaluation.baseline import baseline_from_csv
 
     cells = grid({(0.9, 0.5): [(100, "converged"), (300, "converged")],
                   (0.9, 0.9): [(300, "converged"), (100, "converged")],
@@ -123,7 +123,7 @@ def test_eval_foams_baseline_of_a_family_grid_is_the_family_best(tmp_path):
 
 
 def test_the_oracle_keeps_each_cases_best_run_and_the_grids_cost():
-    from jaxsimrl.evaluation.foam_oracle import ORACLE, ORACLE_GRID, choose
+    from jaxsimrl.apps.foam.evaluation.oracle import ORACLE, ORACLE_GRID, choose
 
     cells = [(0.9, 0.8), (0.95, 0.9), (0.95, 0.95)]
 
@@ -148,9 +148,9 @@ def test_the_oracle_keeps_each_cases_best_run_and_the_grids_cost():
 def test_the_oracles_axes_and_the_defaults_k_omega_factor():
     from types import SimpleNamespace
 
-    from jaxsimrl.evaluation.foam_baseline import as_action
-    from jaxsimrl.evaluation.foam_eval_spec import TUTORIAL_DEFAULTS
-    from jaxsimrl.evaluation.foam_oracle import oracle_axes, oracle_cells
+    from jaxsimrl.apps.foam.evaluation.baseline import as_action
+    from jaxsimrl.apps.foam.evaluation.eval_spec import TUTORIAL_DEFAULTS
+    from jaxsimrl.apps.foam.evaluation.oracle import oracle_axes, oracle_cells
 
     three = FoamEnvConfig(relax_k_omega="action", action_low=(0.2, 0.2, 0.2), action_high=(0.95, 0.95, 0.95))
     spec = SimpleNamespace(oracle_alpha_u=None, oracle_alpha_p=(0.5,), oracle_alpha_t=None,

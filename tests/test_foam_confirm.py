@@ -157,7 +157,7 @@ def test_cpu_time_of_a_restarted_run_adds_up_its_processes():
 
 
 def test_eval_spec_passes_the_check_to_every_run(tmp_path):
-    from jaxsimrl.evaluation.foam_eval_spec import EvalSpec, eval_config
+    from jaxsimrl.apps.foam.evaluation.eval_spec import EvalSpec, eval_config
 
     spec = EvalSpec(run_dir=tmp_path, confirm_alpha_u=0.9).validate()
     cfg = eval_config(FoamEnvConfig(), spec, 0.0254, [(0.95, 0.3)])

@@ -171,7 +171,7 @@ TUTORIALS = Path("/usr/share/doc/openfoam-examples/examples/incompressible/simpl
 def test_alpha_t_relaxes_a_users_own_turbulence_fields(tmp_path):
     """pitzDaily runs k-epsilon: alpha_t relaxes k and epsilon, found from its dry run; its box gains
     alpha_u's bounds for alpha_t; a step height is refused."""
-    from jaxsimrl.envs.foam_config import user_case_config
+    from jaxsimrl.apps.foam.config import user_case_config
 
     case = tmp_path / "pitzDaily"
     shutil.copytree(TUTORIALS / "pitzDaily", case)

@@ -14,7 +14,7 @@ from foam_marks import needs_openfoam
 from foam_bridge import criterion_distance
 from foam_bridge.config import FoamEnvConfig
 from foam_bridge.env import FoamCaseEnv
-from jaxsimrl.solve.drive import LearnedActor
+from jaxsimrl.apps.foam.solve.drive import LearnedActor
 
 
 def test_the_distance_is_the_worst_field_s_decades_above_its_threshold() -> None:

@@ -159,6 +159,13 @@ def solver_pids(run_dir: Any) -> list[int]:
     return [int(pid) for pid in found.stdout.split()]
 
 
+#: How long a solver may outlive close(): a Ray actor's kill reaches its solver's process group
+#: asynchronously, and on a loaded 2-core machine a solver was seen running just after close() returned
+#: (5 of 8 runs on 2026-12-04, main before this change included; gone within 5 s). The project's bar for a
+#: stopped run is "no solver after 5 s".
+CLOSE_GONE_S = 5.0
+
+
 def wait_gone(pids: list[int], seconds: float = 15.0) -> list[int]:
     """The pids still alive after waiting up to ``seconds`` for them to exit."""
     deadline = time.monotonic() + seconds
@@ -259,7 +266,7 @@ def test_a_lost_node_ends_its_episodes_and_the_batch_goes_on_with_the_survivor(t
             assert seen["solvers"] and not wait_gone(seen["solvers"])  # the lost node's solver died too
         finally:
             bounded(STEP_BOUND_S, env.close)
-        assert not solver_pids(tmp_path)
+        assert not wait_gone(solver_pids(tmp_path), CLOSE_GONE_S)
 
 
 @pytest.mark.slow  # a Ray cluster, nodes killed
@@ -289,7 +296,7 @@ def test_a_node_that_joined_later_takes_the_replacement_and_no_node_left_is_one_
                     step(env)
         finally:
             bounded(STEP_BOUND_S, env.close)
-        assert not solver_pids(tmp_path)
+        assert not wait_gone(solver_pids(tmp_path), CLOSE_GONE_S)
 
 
 def closed_port() -> int:
@@ -323,7 +330,7 @@ def test_train_foam_refuses_an_unreachable_address_in_one_line(capsys, tmp_path)
 
 
 def test_episodes_csv_records_the_node_and_reads_older_files_without_it(tmp_path):
-    from jaxsimrl.envs.foam_episodes import EpisodeLog
+    from jaxsimrl.apps.foam.episodes import EpisodeLog
 
     path = tmp_path / "episodes.csv"
     log = EpisodeLog(path)
@@ -389,7 +396,7 @@ def test_train_foam_goes_on_after_a_node_loss_and_a_killed_driver_loses_no_episo
     Asynchronous (2 envs per worker): the lost node's envs lose one or two episodes (one may be between
     episodes), and a resume replays each env's state (4 of them), as tests/test_async_trainer.py's."""
     from foam_bridge.backends.reaper import processes_under
-    from jaxsimrl.envs.foam_episodes import EpisodeLog
+    from jaxsimrl.apps.foam.episodes import EpisodeLog
 
     run, tmp = tmp_path / "run", tmp_path / "tmp"
     tmp.mkdir()
@@ -471,7 +478,7 @@ def _check_resumed_after_a_kill(processes: list[subprocess.Popen], tmp: Path, ru
     from test_train_foam import _check_records
 
     from foam_bridge.backends.reaper import processes_under
-    from jaxsimrl.envs.foam_episodes import EpisodeLog
+    from jaxsimrl.apps.foam.episodes import EpisodeLog
     from jaxsimrl.runs.checkpoint import Checkpoints
 
     done = _checkpoints(run)[-1]

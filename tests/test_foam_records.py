@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from foam_bridge.records import COLUMNS, EpisodeRecord, read_rows, rows_to_csv
-from jaxsimrl.envs.foam_episodes import EpisodeLog
+from jaxsimrl.apps.foam.episodes import EpisodeLog
 
 ROOT = Path(__file__).resolve().parents[1]
 COMMITTED = sorted(ROOT.glob("experiments/*/*/episodes.csv"))

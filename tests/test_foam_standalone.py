@@ -16,7 +16,7 @@ import foam_bridge
 PACKAGE = Path(__file__).parent.parent / "foam_bridge"
 MODULES = ["foam_bridge", "foam_bridge.batched", "foam_bridge.env", "foam_bridge.grid",
            "foam_bridge.gym_envs", "foam_bridge.backends.local", "foam_bridge.backends.ray_backend",
-           "foam_bridge.case", "foam_bridge.user_case", "foam_bridge.export"]
+           "foam_bridge.template", "foam_bridge.user_case", "foam_bridge.export"]
 HEAVY = ("jax", "jaxlib", "jaxsimrl")
 
 
@@ -65,7 +65,7 @@ def test_a_plugin_user_gets_every_public_name_from_the_package_without_jax():
     loaded, registered, homes, heavy, names = json.loads(_python(code))
     assert loaded == [] and registered
     assert all(homes.values()) and heavy == []
-    assert names == sorted(["ENV_ID", *foam_bridge._EXPORTS])
+    assert names == sorted(["ENV_ID", *foam_bridge._EXPORTS, *foam_bridge._MODULES])
     for wanted in ("FoamEnvConfig", "K_OMEGA_ACTION", "TEST_CONVERGENCE", "FoamCaseEnv", "BatchedFoamEnv",
                    "RelaxationControlEnv", "RelaxationControlVecEnv", "make_backend", "run_grid",
                    "export_case", "case_defaults", "CaseError", "PoolLostError", "OpenFOAMNotFoundError"):
@@ -82,7 +82,7 @@ def test_the_type_checking_imports_list_the_same_names_as_the_lazy_exports():
     (block,) = [node for node in init.body if isinstance(node, ast.If)
                 and getattr(node.test, "id", "") == "TYPE_CHECKING"]
     seen = {alias.name: f"{node.module}" for node in block.body for alias in node.names}
-    assert seen == foam_bridge._EXPORTS
+    assert seen == {**foam_bridge._EXPORTS, **{name: "foam_bridge" for name in foam_bridge._MODULES}}
 
 
 def test_every_all_names_what_its_module_defines():
@@ -101,7 +101,7 @@ def test_every_all_names_what_its_module_defines():
             elif isinstance(node, ast.Import | ast.ImportFrom):
                 defined |= {(alias.asname or alias.name).split(".")[0] for alias in node.names}
         if name == "foam_bridge/__init__.py":
-            defined |= set(foam_bridge._EXPORTS)
+            defined |= {*foam_bridge._EXPORTS, *foam_bridge._MODULES}
         stale += [f"{name}: {item}" for item in declared if item not in defined]
     assert stale == []
 

@@ -18,8 +18,8 @@ from foam_bridge.errors import CaseError
 from foam_bridge.foamdict import expand
 from foam_bridge.openfoam import find_openfoam
 from foam_bridge.user_case import BUILTIN_BOX
+from jaxsimrl.apps.foam.config import foam_config_from_json, foam_config_to_json
 from jaxsimrl.cli.main import main
-from jaxsimrl.envs.foam_config import foam_config_from_json, foam_config_to_json
 
 TUTORIALS = Path("/usr/share/doc/openfoam-examples/examples/incompressible/simpleFoam")
 needs_tutorials = pytest.mark.skipif(not TUTORIALS.is_dir(), reason="openfoam-examples not installed")
@@ -153,7 +153,7 @@ def test_a_case_without_residual_control_is_refused_in_one_line(capsys, tmp_path
 def test_the_own_box_of_a_plain_simple_case_avoids_the_sigfpe_of_the_built_in_box(tmp_path: Path) -> None:
     """pitzDailyExptInlet at the top corner of each box: the built-in box's (0.95, 0.95) dies of SIGFPE
     within a few dozen iterations, its own box's top corner runs on (measured: to the 2,000 cap)."""
-    from jaxsimrl.envs.foam_config import user_case_config
+    from jaxsimrl.apps.foam.config import user_case_config
 
     base = FoamEnvConfig(case_dir=TUTORIALS / "pitzDailyExptInlet", interval=100, max_iterations=300,
                          work_dir=tmp_path / "work")
@@ -177,7 +177,7 @@ def _rows(outcome: str, iterations: list[int], cause: str = "crashed at iteratio
 
 
 def test_systematic_failure_needs_every_episode_failed_the_same_way_and_one_per_env() -> None:
-    from jaxsimrl.envs.foam_episodes import SYSTEMATIC_MIN_EPISODES, EpisodeLog
+    from jaxsimrl.apps.foam.episodes import SYSTEMATIC_MIN_EPISODES, EpisodeLog
 
     def log(rows):
         return EpisodeLog(Path("unused.csv"), rows)
@@ -198,7 +198,7 @@ def test_a_run_whose_episodes_all_fail_the_same_way_stops_non_zero_and_resumable
     """Every episode of the built-in case 'diverges' at iteration 1 under an absurd divergence threshold:
     the run stops after its first update with the cause in one line, exit 1, and resumes (to stop again
     while the cause is there)."""
-    from jaxsimrl.envs.foam_episodes import EpisodeLog
+    from jaxsimrl.apps.foam.episodes import EpisodeLog
 
     config = tmp_path / "config.json"
     config.write_text(json.dumps({"foam": {"divergence_threshold": 1e-9}}))
@@ -220,7 +220,8 @@ def test_a_run_whose_episodes_all_fail_the_same_way_stops_non_zero_and_resumable
 def test_the_iterations_plot_marks_failures_and_leaves_them_out_of_the_mean(tmp_path: Path) -> None:
     from matplotlib.figure import Figure
 
-    from jaxsimrl.envs.foam_episodes import EpisodeLog
+    from jaxsimrl.apps.foam import FAILED_OUTCOMES
+    from jaxsimrl.apps.foam.episodes import EpisodeLog
     from jaxsimrl.evaluation.curves import plot_episode_iterations, read_episode_iterations
 
     outcomes = [("converged", 400), ("crashed", 1), ("converged", 600), ("diverged", 37), ("truncated", 800)]
@@ -228,7 +229,7 @@ def test_the_iterations_plot_marks_failures_and_leaves_them_out_of_the_mean(tmp_
     for env, (outcome, iterations) in enumerate(outcomes):
         log.add(env, 1, {"episode": {"outcome": outcome, "iterations": iterations, "actions": [[0.5, 0.5]]}})
     log.flush()
-    episodes = read_episode_iterations(tmp_path / "episodes.csv")
+    episodes = read_episode_iterations(tmp_path / "episodes.csv", FAILED_OUTCOMES)
     ax = Figure().subplots()
     plot_episode_iterations(ax, episodes, window=100)
     lines = {line.get_label(): line for line in ax.get_lines()}

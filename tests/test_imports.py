@@ -19,7 +19,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("jaxsimrl", "foam_bridge")
+PACKAGES = ("jaxsimrl", "foam_bridge", "atomicfile")
 
 
 def modules() -> dict[str, Path]:
@@ -88,9 +88,12 @@ def cycles(edges: dict[str, set[str]]) -> list[list[str]]:
 
 
 def layer(name: str) -> str:
-    """jaxsimrl's subpackage of a module (jaxsimrl.policy.loading -> jaxsimrl.policy); foam_bridge is one."""
+    """jaxsimrl's subpackage of a module (jaxsimrl.policy.loading -> jaxsimrl.policy), an application
+    (jaxsimrl.apps.foam.solve.drive -> jaxsimrl.apps.foam); foam_bridge is one."""
     parts = name.split(".")
-    return "foam_bridge" if parts[0] == "foam_bridge" else ".".join(parts[:2])
+    if parts[0] == "foam_bridge":
+        return "foam_bridge"
+    return ".".join(parts[:3] if parts[1:2] == ["apps"] else parts[:2])
 
 
 def test_the_graph_is_read_from_the_source():
@@ -116,8 +119,8 @@ def test_the_subpackages_are_layers():
 def test_the_trained_policy_sits_below_evaluation_introspection_and_solve():
     edges = graph()
     below = {t for name, targets in edges.items() if layer(name) == "jaxsimrl.policy" for t in targets}
-    assert not {layer(t) for t in below} & {"jaxsimrl.evaluation", "jaxsimrl.introspect", "jaxsimrl.solve",
-                                            "jaxsimrl.cli"}
+    above = {"jaxsimrl.evaluation", "jaxsimrl.introspect", "jaxsimrl.apps.foam", "jaxsimrl.cli"}
+    assert not {layer(t) for t in below} & above
 
 
 @pytest.mark.slow  # subprocesses that import JAX
@@ -128,10 +131,10 @@ def test_loading_and_acting_import_no_plotting(tmp_path):
     import subprocess
     import sys
 
-    from jaxsimrl.solve.controller import DEFAULT_CONTROLLER
+    from jaxsimrl.apps.foam.solve.controller import DEFAULT_CONTROLLER
 
     script = ("import sys, numpy as np, jaxsimrl, jaxsimrl.policy\n"
-              "from jaxsimrl.solve.controller import DEFAULT_CONTROLLER\n"
+              "from jaxsimrl.apps.foam.solve.controller import DEFAULT_CONTROLLER\n"
               "for load in (jaxsimrl.load_policy, jaxsimrl.policy.load_policy):\n"
               "    policy = load(DEFAULT_CONTROLLER)\n"
               "    print(type(policy).__name__, policy.act(np.ones(policy.obs_dim))[0].shape)\n"
@@ -140,3 +143,49 @@ def test_loading_and_acting_import_no_plotting(tmp_path):
                          cwd=tmp_path, check=True).stdout.splitlines()
     actions = len(json.loads((DEFAULT_CONTROLLER / "provenance.json").read_text())["actions"])
     assert out == [f"LoadedPolicy ({actions},)", f"TrainedPolicy ({actions},)", "[]"]
+
+
+#: The project modules a function may import where it runs instead of at its module's top: each loads JAX,
+#: orbax or matplotlib (test_deferred_modules_are_heavy measures it), which `jaxsimrl --help`, a flag
+#: error and solve's start must not wait for. Every other import of a project module is at the top.
+DEFERRED = {"jaxsimrl.agents.ppo", "jaxsimrl.agents.ppo.batch", "jaxsimrl.apps.foam.evaluation.plots",
+            "jaxsimrl.apps.foam.evaluation.policy", "jaxsimrl.apps.foam.vec_env", "jaxsimrl.envs.host",
+            "jaxsimrl.envs.host_async", "jaxsimrl.envs.lorenz", "jaxsimrl.evaluation.lorenz_eval",
+            "jaxsimrl.evaluation.plots", "jaxsimrl.introspect.loading", "jaxsimrl.policy",
+            "jaxsimrl.runs.checkpoint", "jaxsimrl.runs.training"}
+
+
+def function_level_imports() -> list[tuple[str, str]]:
+    """(module, imported project module) for every import of a project module inside a function."""
+    known, found = modules(), []
+    for name, path in known.items():
+        for function in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(function, ast.FunctionDef | ast.AsyncFunctionDef):
+                for node in ast.walk(function):
+                    if isinstance(node, ast.Import):
+                        found += [(name, alias.name) for alias in node.names if alias.name in known]
+                    elif isinstance(node, ast.ImportFrom) and node.module in known:
+                        targets = (f"{node.module}.{alias.name}" for alias in node.names)
+                        found += [(name, target if target in known else node.module) for target in targets]
+    return sorted(set(found))
+
+
+def test_imports_are_at_the_top_but_for_the_heavy_ones():
+    found = function_level_imports()
+    assert ("jaxsimrl.training.lorenz", "jaxsimrl.runs.training") in found  # the scan sees one that is known
+    assert [(name, target) for name, target in found if target not in DEFERRED] == []
+
+
+@pytest.mark.slow  # a fresh interpreter per module
+def test_deferred_modules_are_heavy():
+    import subprocess
+    import sys
+
+    heavy = {"jax", "orbax", "matplotlib"}
+    code = ("import sys, importlib; module = importlib.import_module(sys.argv[1])\n"
+            "for name in getattr(module, '__all__', []): getattr(module, name)  # a lazy package's names\n"
+            "print(sorted({m.split('.')[0] for m in sys.modules}))")
+    for module in sorted(DEFERRED):
+        loaded = subprocess.run([sys.executable, "-c", code, module], capture_output=True, text=True,
+                                check=True, cwd=ROOT, timeout=120).stdout
+        assert heavy & set(ast.literal_eval(loaded)), module

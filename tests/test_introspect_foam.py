@@ -16,13 +16,9 @@ from foam_marks import needs_openfoam
 
 import jaxsimrl
 from foam_bridge.config import U_REF, FoamEnvConfig
-from jaxsimrl.introspect import (
-    factor_history,
-    plot_factor_history,
-    plot_policy_profile,
-    policy_profile,
-)
-from jaxsimrl.policy.spec import foam_obs_names
+from jaxsimrl.apps.foam.introspect import factor_history, plot_factor_history
+from jaxsimrl.apps.foam.spec import foam_obs_names
+from jaxsimrl.introspect import plot_policy_profile, policy_profile
 
 RUN = Path(__file__).resolve().parents[1] / "experiments" / "notebooks" / "foam_small_run"
 STATES = np.linspace(0.0, 6.0, 13)[:, None]  # beyond both ends of what training saw (0.6 .. 2.2)
@@ -54,7 +50,7 @@ def test_a_train_foam_run_loads_and_acts_in_its_box(policy):
 
 
 def test_acting_is_eval_foams_actor(policy):
-    from jaxsimrl.evaluation.foam_policy import load_foam_run
+    from jaxsimrl.apps.foam.evaluation.policy import load_foam_run
     from jaxsimrl.policy import BatchActor
 
     actor = BatchActor(load_foam_run(RUN).policy, 13)

@@ -7,10 +7,10 @@ from pathlib import Path
 
 import numpy as np
 
+from jaxsimrl.apps.foam.solve import DEFAULT_CONTROLLER
 from jaxsimrl.policy import load_policy, loading
 from jaxsimrl.policy.arrays import ACTING_FILE, export_acting_arrays, read_acting_arrays
 from jaxsimrl.runs.run_dir import RunDir
-from jaxsimrl.solve import DEFAULT_CONTROLLER
 
 
 def test_the_shipped_controller_acts_alike_from_its_arrays_and_its_checkpoint(tmp_path: Path,

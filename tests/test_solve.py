@@ -23,22 +23,21 @@ from foam_marks import OPENFOAM
 from foamlib import FoamFile
 from slow_case import STOP_LIMIT_S, iterations_in, seconds_until, slow_pitz_daily, wait_until
 
-from foam_bridge import case as foam_case
-from foam_bridge import foamdict
+from foam_bridge import foamdict, template
 from foam_bridge.config import FoamEnvConfig
 from foam_bridge.logparse import LogParser
 from foam_bridge.openfoam import BRIDGE_MARK, find_openfoam
 from jaxsimrl import load_policy
-from jaxsimrl.solve import DEFAULT_CONTROLLER, Controller, SolveReport, solve_case
-from jaxsimrl.solve.agreement import compare_results, summary_line, tolerances
-from jaxsimrl.solve.controller import policy_env_config
-from jaxsimrl.solve.criterion import parse_residual, resolve
-from jaxsimrl.solve.own import OwnProcess
-from jaxsimrl.solve.settings import solve_config
-from jaxsimrl.solve.watchdog import Watchdog
+from jaxsimrl.apps.foam.solve import DEFAULT_CONTROLLER, Controller, SolveReport, solve_case
+from jaxsimrl.apps.foam.solve.agreement import compare_results, summary_line, tolerances
+from jaxsimrl.apps.foam.solve.controller import policy_env_config
+from jaxsimrl.apps.foam.solve.criterion import parse_residual, resolve
+from jaxsimrl.apps.foam.solve.own import OwnProcess
+from jaxsimrl.apps.foam.solve.settings import solve_config
+from jaxsimrl.apps.foam.solve.watchdog import Watchdog
 
 TUTORIALS = Path("/usr/share/doc/openfoam-examples/examples/incompressible/simpleFoam")
-#: What the shipped controller says of itself (jaxsimrl/controllers/default/provenance.json).
+#: What the shipped controller says of itself (jaxsimrl/apps/foam/controllers/default/provenance.json).
 SHIPPED = json.loads((DEFAULT_CONTROLLER / "provenance.json").read_text())
 PYTHON = sys.executable
 pytestmark = OPENFOAM
@@ -56,9 +55,9 @@ def _tree_hash(root: Path) -> str:
 
 def _coarse_step(dest: Path) -> Path:
     """The built-in step as a user's case: mesh_scale 0.4, SIMPLEC, own factors, the training criterion."""
-    shutil.copytree(foam_case.TEMPLATE_DIR, dest)
+    shutil.copytree(template.TEMPLATE_DIR, dest)
     with FoamFile(dest / "system" / "meshParameters") as params:
-        params.update(foam_case.mesh_parameters(0.4, 0.0127))
+        params.update(template.mesh_parameters(0.4, 0.0127))
     solution = dest / "system" / "fvSolution"
     text = solution.read_text().replace("p               1e-4;", "p               5e-2;")
     text = text.replace("U               1e-6;", "U               1e-3;").replace(" 1e-5;", " 1e-3;")

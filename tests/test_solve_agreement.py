@@ -1,5 +1,5 @@
-"""jaxsimrl.solve.agreement on small hand-written cases: fields (ascii, binary, uniform, missing) and
-function-object tables as OpenFOAM v1912 writes them. No OpenFOAM needed; the real runs are in
+"""jaxsimrl.apps.foam.solve.agreement on small hand-written cases: fields (ascii, binary, uniform, missing)
+and function-object tables as OpenFOAM v1912 writes them. No OpenFOAM needed; the real runs are in
 tests/test_solve.py."""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from foamlib import FoamFieldFile
 
-from jaxsimrl.solve.agreement import (
+from jaxsimrl.apps.foam.solve.agreement import (
     compare_results,
     final_rows,
     relative_difference,

@@ -1,4 +1,4 @@
-"""``jaxsimrl solve CASE [CASE ...] --pool N``: a campaign of cases (jaxsimrl.solve.campaign).
+"""``jaxsimrl solve CASE [CASE ...] --pool N``: a campaign of cases (jaxsimrl.apps.foam.solve.campaign).
 
 The real runs are campaigns of 6 coarse variants of the built-in step (tests/test_solve.py's
 ``_coarse_step`` at three step heights, two of them sharing a directory name), solved by the residual rule
@@ -24,12 +24,19 @@ from foamlib import FoamFile
 from slow_case import STOP_LIMIT_S, iterations_in, seconds_until, wait_until
 from test_solve import _coarse_step
 
-from foam_bridge import case as foam_case
+from foam_bridge import template
 from foam_bridge.backends import Request
 from foam_bridge.backends.base import _batch_deadline_s, start_deadline_s
 from foam_bridge.backends.reaper import processes_under
-from jaxsimrl.solve.campaign import CASE_TIMEOUT_S, CampaignSettings, find_cases, plan_campaign
-from jaxsimrl.solve.campaign_table import FAILED, failed_row, finished_line, row_of, write_plot, write_table
+from jaxsimrl.apps.foam.solve.campaign import CASE_TIMEOUT_S, CampaignSettings, find_cases, plan_campaign
+from jaxsimrl.apps.foam.solve.campaign_table import (
+    FAILED,
+    failed_row,
+    finished_line,
+    row_of,
+    write_plot,
+    write_table,
+)
 
 FOAM_ENV = {**os.environ, "WM_PROJECT_DIR": os.environ.get("WM_PROJECT_DIR", "/usr/share/openfoam")}
 #: The rule and the pool every real campaign here runs with.
@@ -135,7 +142,7 @@ def _variants(root: Path) -> list[Path]:
                                               ("c", 1.5), ("d", 1.5)]):
         case = _coarse_step(root / folder / ("step" if index < 2 else f"step{index}"))
         with FoamFile(case / "system" / "meshParameters") as params:
-            params.update(foam_case.mesh_parameters(0.4, 0.0127 * height))
+            params.update(template.mesh_parameters(0.4, 0.0127 * height))
         cases.append(case)
     return cases
 

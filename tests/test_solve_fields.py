@@ -17,9 +17,9 @@ import pytest
 from foam_marks import needs_openfoam
 
 from foam_bridge.config import FoamEnvConfig
-from jaxsimrl.solve import Controller, solve_case
-from jaxsimrl.solve.fields import UnmappedField, map_fields, observed_mapping
-from jaxsimrl.solve.settings import CaseSettings, not_applicable
+from jaxsimrl.apps.foam.solve import Controller, solve_case
+from jaxsimrl.apps.foam.solve.fields import UnmappedField, map_fields, observed_mapping
+from jaxsimrl.apps.foam.solve.settings import CaseSettings, not_applicable
 
 REPO = Path(__file__).resolve().parents[1]
 TUTORIALS = Path("/usr/share/doc/openfoam-examples/examples/incompressible/simpleFoam")

@@ -1,5 +1,6 @@
-"""solve's live plot (jaxsimrl.solve.live): solve.png redrawn from the episode's log after each step, in a
-thread; the real solve's wiring is checked in tests/test_solve_rules.py (solve.png there mid-run)."""
+"""solve's live plot (jaxsimrl.apps.foam.solve.live): solve.png redrawn from the episode's log after each
+step, in a thread; the real solve's wiring is checked in tests/test_solve_rules.py (solve.png there
+mid-run)."""
 
 from __future__ import annotations
 
@@ -8,8 +9,8 @@ from pathlib import Path
 
 from test_foam_logparse import CONVERGED_TAIL
 
-from jaxsimrl.solve.drive import ControlledRun
-from jaxsimrl.solve.live import LivePlot
+from jaxsimrl.apps.foam.solve.drive import ControlledRun
+from jaxsimrl.apps.foam.solve.live import LivePlot
 
 
 def _run(steps: int) -> ControlledRun:

@@ -22,8 +22,8 @@ from foam_marks import needs_openfoam
 from slow_case import STOP_LIMIT_S, TUTORIALS, iterations_in, seconds_until, slow_pitz_daily, wait_until
 
 from foam_bridge.parallel import _write_decompose_dict, kill_session, session_processes
-from jaxsimrl.solve.agreement import compare_results
-from jaxsimrl.solve.own import run_own
+from jaxsimrl.apps.foam.solve.agreement import compare_results
+from jaxsimrl.apps.foam.solve.own import run_own
 
 PYTHON = sys.executable
 FOAM_ENV = {**os.environ, "WM_PROJECT_DIR": os.environ.get("WM_PROJECT_DIR", "/usr/share/openfoam")}

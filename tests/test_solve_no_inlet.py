@@ -15,8 +15,8 @@ from foam_marks import needs_openfoam
 from foam_bridge.base_case import declared_patches
 from foam_bridge.config import FoamEnvConfig
 from foam_bridge.openfoam import find_openfoam
-from jaxsimrl.solve import solve_case
-from jaxsimrl.solve.settings import inlet_of
+from jaxsimrl.apps.foam.solve import solve_case
+from jaxsimrl.apps.foam.solve.settings import inlet_of
 
 CAVITY = Path("/usr/share/doc/openfoam-examples/examples/incompressible/pisoFoam/RAS/cavity")
 HEADER = "FoamFile {{ version 2.0; format ascii; class dictionary; object {}; }}\n"

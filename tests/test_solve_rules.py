@@ -1,4 +1,4 @@
-"""The no-training rules (jaxsimrl.solve.rules): their logic on made-up residuals, then ``solve
+"""The no-training rules (jaxsimrl.apps.foam.solve.rules): their logic on made-up residuals, then ``solve
 --controller`` on a coarse SIMPLEC and a coarse plain-SIMPLE case with the real simpleFoam."""
 
 from __future__ import annotations
@@ -15,10 +15,10 @@ import pytest
 from foam_marks import needs_openfoam
 from test_solve import _coarse_step, _marked_processes
 
-from jaxsimrl.solve import solve_case
-from jaxsimrl.solve.rules import GROWTH_DECADES, RAISE_SHARE, Bandit, ResidualRule, RulePolicy
-from jaxsimrl.solve.settings import CaseSettings, check_factor
-from jaxsimrl.solve.watchdog import WatchdogSettings
+from jaxsimrl.apps.foam.solve import solve_case
+from jaxsimrl.apps.foam.solve.rules import GROWTH_DECADES, RAISE_SHARE, Bandit, ResidualRule, RulePolicy
+from jaxsimrl.apps.foam.solve.settings import CaseSettings, check_factor
+from jaxsimrl.apps.foam.solve.watchdog import WatchdogSettings
 
 CRITERION = {"U": 1e-3, "p": 1e-2}
 OWN, LOW, HIGH = (0.7, 0.3, 0.7), (0.35, 0.15, 0.35), (0.875, 0.375, 0.875)

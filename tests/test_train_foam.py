@@ -18,9 +18,9 @@ import pytest
 from foam_marks import needs_openfoam
 
 from foam_bridge.backends.reaper import processes_under
-from jaxsimrl.cli.foam_plan import foam_ppo_defaults
+from jaxsimrl.apps.foam.episodes import EpisodeLog
+from jaxsimrl.apps.foam.plan import foam_ppo_defaults
 from jaxsimrl.cli.main import main
-from jaxsimrl.envs.foam_episodes import EpisodeLog
 
 # The smallest usable mesh; 4 steps per env per update, so updates come every few seconds. Episodes end
 # within 5 steps (most converge in 300-450 iterations here, the others are truncated): one or two per update.

@@ -14,9 +14,9 @@ from foam_marks import needs_openfoam
 
 from foam_bridge.config import STEP_HEIGHT_H, FoamEnvConfig
 from foam_bridge.grid import read_grid_csv
+from jaxsimrl.apps.foam.config import foam_config_from_json
+from jaxsimrl.apps.foam.episodes import EpisodeLog
 from jaxsimrl.cli.main import main
-from jaxsimrl.envs.foam_config import foam_config_from_json
-from jaxsimrl.envs.foam_episodes import EpisodeLog
 
 REPO = Path(__file__).resolve().parents[1]
 H, H2 = STEP_HEIGHT_H, 2 * STEP_HEIGHT_H
@@ -136,7 +136,7 @@ def test_grid_foam_3d_and_eval_foam_of_a_3_action_policy(family_run, tmp_path, c
 
 
 def test_a_3d_grid_best_cell_is_refused_for_a_2_action_policy(tmp_path):
-    from jaxsimrl.evaluation.foam_baseline import as_action
+    from jaxsimrl.apps.foam.evaluation.baseline import as_action
 
     two = FoamEnvConfig().validate()
     assert as_action(two, (0.9, 0.8)) == (0.9, 0.8)

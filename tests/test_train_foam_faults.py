@@ -30,9 +30,9 @@ from slow_case import (
 from test_train_foam import TINY  # the cheap real runs: smallest mesh, 4 steps per env per update
 
 from foam_bridge.config import FoamEnvConfig
-from jaxsimrl.cli.foam_plan import episode_steps_bound, total_steps_for
+from jaxsimrl.apps.foam.episodes import EpisodeLog
+from jaxsimrl.apps.foam.plan import episode_steps_bound, total_steps_for
 from jaxsimrl.cli.main import main
-from jaxsimrl.envs.foam_episodes import EpisodeLog
 
 
 def run_cli(capsys, *argv: str) -> tuple[int, str, str]:
@@ -216,14 +216,14 @@ def _episode(iterations: int) -> dict:
 
 
 def test_the_bar_counts_episodes_as_they_end_and_keeps_the_count_at_80_columns(tmp_path):
-    from jaxsimrl.runs.progress import FoamProgress
+    from jaxsimrl.runs.progress import EpisodeProgress
 
     log = EpisodeLog(tmp_path / "episodes.csv")
     for i in range(1233):
         log.add(i % 2, 1, _episode(250 + i % 7))
     log.flush()
     stream = io.StringIO()
-    with FoamProgress(2000, log, 2, _Metrics(), stream=stream, live=True) as bar:
+    with EpisodeProgress(2000, log, 2, _Metrics(), stream=stream, live=True) as bar:
         bar.update(0, 0.0, math.nan, 1, 1)
         bar.episode_ended()  # the host env says: one ended during update 2, before the update's end
         rendered = io.StringIO()
@@ -242,13 +242,14 @@ def test_the_bar_counts_episodes_as_they_end_and_keeps_the_count_at_80_columns(t
 def test_the_progress_line_says_when_the_pool_has_lost_workers(tmp_path):
     """A worker lost for good (a Ray node died) shows in every progress line, first, so a narrow
     terminal does not cut it; a full pool says nothing of it."""
-    from jaxsimrl.runs.progress import FoamProgress
+    from jaxsimrl.runs.progress import EpisodeProgress
 
     log = EpisodeLog(tmp_path / "episodes.csv")
     log.add(0, 1, _episode(250))
     workers = [4]
     stream = io.StringIO()
-    with FoamProgress(100, log, 4, _Metrics(), stream=stream, live=False, workers=lambda: workers[0]) as bar:
+    with EpisodeProgress(100, log, 4, _Metrics(), stream=stream, live=False,
+                         workers=lambda: workers[0]) as bar:
         bar.update(0, 0.0, math.nan, 1, 1)
         workers[0] = 3
         bar.update(0, 0.0, math.nan, 2, 2)

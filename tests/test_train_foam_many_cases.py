@@ -1,6 +1,7 @@
-"""train-foam --family: one controller trained on many cases (jaxsimrl.cli.foam_family), each in its own box
-and criterion, its reward scaled by its own settings' iterations; resumed; then ``solve`` with it on a case
-of the other algorithm. Real simpleFoam on coarse variants (``jaxsimrl family``) of two tutorials."""
+"""train-foam --family: one controller trained on many cases (jaxsimrl.apps.foam.cli.train_family), each in
+its own box and criterion, its reward scaled by its own settings' iterations; resumed; then ``solve`` with it
+on a case of the other algorithm. Real simpleFoam on coarse variants (``jaxsimrl family``) of two
+tutorials."""
 
 from __future__ import annotations
 
@@ -12,8 +13,8 @@ import pytest
 from foam_marks import needs_openfoam
 from test_train_foam_family import _cli
 
+from jaxsimrl.apps.foam.solve import solve_case
 from jaxsimrl.cli.main import main
-from jaxsimrl.solve import solve_case
 
 TUTORIALS = Path("/usr/share/doc/openfoam-examples/examples/incompressible/simpleFoam")
 TINY = ["--pool", "2", "--num-envs", "2", "--steps-per-update", "8", "--residual-features", "2",

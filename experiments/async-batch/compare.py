@@ -9,7 +9,7 @@ The learning curve is the mean SIMPLE iterations of consecutive windows of episo
 ended (the episode index). One measure of solver use serves both batches: the solvers' own seconds
 (``solver_time_s``, OpenFOAM's ExecutionTime, summed over the episodes that ended) over the pool's time
 (pool x the run's training wall time). Each batch's own ``pool_utilisation`` (summary.json) is shown
-beside it; the two batches compute that one differently (jaxsimrl.training.foam).
+beside it; the two batches compute that one differently (jaxsimrl.apps.foam.training).
 """
 
 from __future__ import annotations

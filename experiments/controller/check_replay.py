@@ -20,7 +20,7 @@ import tempfile
 from pathlib import Path
 
 from foam_bridge import FoamCaseEnv, FoamEnvConfig
-from jaxsimrl.envs.foam_episodes import EpisodeLog
+from jaxsimrl.apps.foam.episodes import EpisodeLog
 
 
 def replay(cfg: FoamEnvConfig, row: dict) -> dict:

@@ -76,7 +76,7 @@ def main() -> None:
         done = runs[name]
         print(f"{name}: {done['outcome']} at {done['iterations']}, U error {done['u_error']:.3g}")
     shutil.rmtree(keep, ignore_errors=True)
-    from jaxsimrl.evaluation.foam_eval_spec import geometry_name
+    from jaxsimrl.apps.foam.evaluation.eval_spec import geometry_name
 
     out = Path(__file__).with_name(f"criterion_relaxation_{geometry_name(args.step_height)}.json")
     atomic_write_json(out, {"step_height": args.step_height, "inlet_velocity": args.inlet_velocity,

@@ -18,7 +18,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from jaxsimrl.envs.foam_episodes import MOVING_WINDOW, EpisodeLog  # noqa: E402
+from jaxsimrl.apps.foam.episodes import MOVING_WINDOW, EpisodeLog  # noqa: E402
 from jaxsimrl.evaluation.curves import trailing_mean  # noqa: E402
 
 

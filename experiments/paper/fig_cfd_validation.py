@@ -16,13 +16,16 @@ The experimental profiles and wall data cannot be downloaded here, so every curv
 only the reattachment lengths are compared (their values as the paper and TMR state them).
 
 ``--step-height 0.0254`` runs the paper's second test geometry, 2h (the step deepened, the floor behind
-it moved down by h; foam_bridge.case.mesh_parameters) and writes the same files with a ``_2h`` suffix.
+it moved down by h; foam_bridge.template.mesh_parameters) and writes the same files with a ``_2h`` suffix.
 Lengths are then in units of that geometry's own step height H (x/H from the step, y/H from the floor
 behind it), as one reports a step flow; the experiment and TMR references belong to h only.
 
     python experiments/paper/fig_cfd_validation.py                       # full mesh, 2000 iterations
     python experiments/paper/fig_cfd_validation.py --step-height 0.0254  # the 2h geometry
     python experiments/paper/fig_cfd_validation.py --mesh-scale 0.4 --iterations 1000 --out /tmp/v
+
+~500 lines because the paper's figures are one script each (experiments/paper/README.md): this one runs
+the case, post-processes it and draws its three figures.
 """
 
 from __future__ import annotations
@@ -43,7 +46,7 @@ from typing import Any
 import numpy as np
 from foamlib import FoamFile
 
-from foam_bridge import case as foam_case
+from foam_bridge import base_case, episode_case, template
 from foam_bridge import validation as val
 from foam_bridge.config import (
     NEVER_CONVERGED,
@@ -138,27 +141,27 @@ def run_uninterrupted(cfg: FoamEnvConfig, root: Path, alpha_u: float, alpha_p: f
                       openfoam: OpenFOAM, write_every: int | None = None) -> SolverRun:
     """Mesh the case under ``root/base``, run it start to end in ``root/case`` with constant factors.
 
-    The episode case is the env's (foam_bridge.case.write_episode_case) without the pause, so its
+    The episode case is the env's (foam_bridge.episode_case.write_episode_case) without the pause, so its
     iterations are those of an env episode with the same constant action (tests/test_foam_env.py).
     ``write_every``: also write the fields every that many iterations (default: only at the end).
     """
     base, case = root / "base", root / "case"
-    info = foam_case.build_base_case(cfg, base, openfoam)
-    foam_case.write_episode_case(base, case, cfg, U_REF, info)
-    foam_case.make_uninterrupted(case, cfg, alpha_u, alpha_p)
+    info = base_case.build_base_case(cfg, base, openfoam)
+    episode_case.write_episode_case(base, case, cfg, U_REF, info)
+    episode_case.make_uninterrupted(case, cfg, alpha_u, alpha_p)
     if write_every is not None:
         # the bridge's run control lives in the file its controlDict include reads last
-        with FoamFile(case / "system" / foam_case.CONTROL_INCLUDE) as control:
+        with FoamFile(case / "system" / episode_case.CONTROL_INCLUDE) as control:
             control["writeInterval"] = write_every
     parser = new_parser(cfg)
     code, wall = run_to_end(case, openfoam, parser, timeout_s=SOLVER_TIMEOUT_S)
     states = state_history((case / "log.simpleFoam").read_bytes(), cfg)
-    return SolverRun(case, parser, code, wall, foam_case.cell_count(base), states)
+    return SolverRun(case, parser, code, wall, template.cell_count(base), states)
 
 
 def new_parser(cfg: FoamEnvConfig) -> LogParser:
     """A parser with the env's divergence limits for a U_ref inlet."""
-    return LogParser(foam_case.CELLS_FUNCTION, foam_case.INLET_FUNCTION, cfg.divergence_threshold,
+    return LogParser(episode_case.CELLS_FUNCTION, episode_case.INLET_FUNCTION, cfg.divergence_threshold,
                      cfg.state_divergence_ratio * U_REF**2)
 
 
@@ -298,7 +301,7 @@ def summary(result: Validation, mesh_scale: float) -> dict[str, Any]:
         "load_average_1_5_15": [round(v, 2) for v in os.getloadavg()],
         "lengths_in": "step heights H of this geometry (x/H from the step, y/H from the floor behind it)",
         "case": {"mesh_scale": mesh_scale, "cells": run.cells, "step_height_m": height,
-                 "u_ref_m_s": U_REF, "re_h": round(U_REF * height / foam_case.KINEMATIC_VISCOSITY),
+                 "u_ref_m_s": U_REF, "re_h": round(U_REF * height / template.KINEMATIC_VISCOSITY),
                  "turbulence_model": "kOmegaSST", "simple_variant": "SIMPLEC", "alpha_u": FACTORS[0],
                  "alpha_p": FACTORS[1], "alpha_k_omega": RELAX_K_OMEGA},
         "solver": {"iterations": run.parser.completed, "wall_time_s": round(run.wall_s, 2),
@@ -375,7 +378,7 @@ def plot_contours(case: Path, time_name: str, result: Validation, path: Path,
     ax.set_xlabel(f"x/{unit}")
     ax.set_ylabel(f"y/{unit}")
     ax.legend(loc="upper right", fontsize=8, framealpha=0.9)
-    reynolds = U_REF * geometry.step_height / foam_case.KINEMATIC_VISCOSITY
+    reynolds = U_REF * geometry.step_height / template.KINEMATIC_VISCOSITY
     ax.set_title(f"Velocity magnitude, step {geometry.name}, simpleFoam k-omega SST, {result.run.cells:,} "
                  f"cells, {result.run.parser.completed} SIMPLEC iterations (Re_{unit} = {reynolds:,.0f})",
                  fontsize=10, pad=18)

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from jaxsimrl.envs.foam_episodes import MOVING_WINDOW, EpisodeLog
+from jaxsimrl.apps.foam.episodes import MOVING_WINDOW, EpisodeLog
 from jaxsimrl.evaluation.curves import read_rows, trailing_mean
 from jaxsimrl.runs.atomic import atomic_write_json
 from jaxsimrl.runs.run_dir import RunDir

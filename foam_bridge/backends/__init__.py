@@ -10,6 +10,8 @@ from pathlib import Path
 from typing import Any
 
 from foam_bridge.backends.base import WORKER_DIED, Backend, validate_pool
+from foam_bridge.backends.local import LocalBackend
+from foam_bridge.backends.ray_backend import RayBackend
 from foam_bridge.backends.worker import BAD_INPUT_ERRORS, EnvFactory, Reply, Request, env_dir
 
 BACKENDS = ("local", "ray")
@@ -29,11 +31,8 @@ def make_backend(
     if name == "local":
         if ray_address is not None:
             raise ValueError("ray_address is only meaningful with backend='ray'")
-        from foam_bridge.backends.local import LocalBackend
 
         return LocalBackend(cfg, num_envs, pool, work_dir, make_env=make_env)
     if name == "ray":
-        from foam_bridge.backends.ray_backend import RayBackend
-
         return RayBackend(cfg, num_envs, pool, work_dir, ray_address, make_env)
     raise ValueError(f"backend must be one of {BACKENDS}, got {name!r}")

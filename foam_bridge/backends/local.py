@@ -35,6 +35,8 @@ from typing import Any
 from foam_bridge.backends.base import CLOSE_GRACE_S, Backend
 from foam_bridge.backends.reaper import kill_processes_under
 from foam_bridge.backends.worker import EnvFactory, EnvHost, Reply, Request, env_dir
+from foam_bridge.base_case import check_case
+from foam_bridge.openfoam import find_openfoam
 
 __all__ = ["DRIVER_POLL_S", "KILL_JOIN_S", "LocalBackend", "_preflight"]
 
@@ -49,8 +51,6 @@ def _preflight(cfg: Any) -> None:
 
     Only for the local backend: Ray nodes may have OpenFOAM and the case where the driver has not.
     """
-    from foam_bridge.base_case import check_case
-    from foam_bridge.openfoam import find_openfoam
 
     openfoam = find_openfoam(cfg.openfoam_path)
     if cfg.case_dir is not None:

@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 from foam_bridge.backends.reaper import kill_processes_under
+from foam_bridge.env import FoamCaseEnv
 
 __all__ = ["BAD_INPUT_ERRORS", "METHODS", "EnvFactory", "EnvHost", "Reply", "Request", "env_dir"]
 
@@ -82,8 +83,6 @@ class EnvHost:
             if self.make_env is not None:
                 self.envs[env_id] = self.make_env(self.cfg, self.work_dir, env_id)
             else:
-                from foam_bridge.env import FoamCaseEnv  # imported here: the driver never needs it
-
                 self.envs[env_id] = FoamCaseEnv(self.cfg, work_dir=self.work_dir, env_id=env_id)
         return self.envs[env_id]
 

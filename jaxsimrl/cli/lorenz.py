@@ -18,8 +18,11 @@ import time
 from pathlib import Path
 from typing import Any
 
+from jaxsimrl.agents.ppo.config import SWEEPABLE, PPOConfig
 from jaxsimrl.cli.errors import UsageError, positive_float, positive_int, seed_list, seed_type
-from jaxsimrl.training.lorenz import Sweep, TrainPlan
+from jaxsimrl.runs.run_dir import RunDir, read_json
+from jaxsimrl.training.common import RunInputError
+from jaxsimrl.training.lorenz import Sweep, TrainPlan, plan_trainer, train_lorenz
 
 # PPOConfig fields with a command-line flag: (flag, type, help). Their defaults are PPOConfig's.
 KNOBS: tuple[tuple[str, Any, str], ...] = (
@@ -89,9 +92,6 @@ def run_train(args: argparse.Namespace, on_chunk: Any = None) -> int:
     if args.print_config:
         sys.stdout.write(json.dumps(plan.config.to_dict(), indent=2) + "\n")
         return 0
-    from jaxsimrl.runs.run_dir import RunDir
-    from jaxsimrl.training.common import RunInputError
-    from jaxsimrl.training.lorenz import plan_trainer, train_lorenz
 
     try:
         trainer = plan_trainer(plan)
@@ -151,9 +151,6 @@ def _final_text(summary: dict[str, Any]) -> str:
 
 
 def _fresh_plan(args: argparse.Namespace) -> TrainPlan:
-    from jaxsimrl.agents.ppo.config import PPOConfig
-    from jaxsimrl.runs.run_dir import RunDir
-
     values = _read_config_file(args.config) if args.config else {}
     values.update(_flag_overrides(args))
     try:
@@ -181,7 +178,6 @@ def _sweep_agents(values: dict[str, Any], flags: set[str], items: list[tuple[str
     field overrides --config's value but may not be a flag too (``flags``)."""
     import itertools
 
-    from jaxsimrl.agents.ppo.config import PPOConfig
 
     names = [name for name, _ in items]
     if len(set(names)) < len(names) or set(names) & flags:
@@ -200,9 +196,6 @@ def _sweep_agents(values: dict[str, Any], flags: set[str], items: list[tuple[str
 
 
 def _resume_plan(args: argparse.Namespace) -> TrainPlan:
-    from jaxsimrl.agents.ppo.config import PPOConfig
-    from jaxsimrl.runs.run_dir import RunDir
-
     fixed = ("config", "network", "seed", "seeds", "sweep", "out")
     changed = [flag for flag in fixed if getattr(args, flag) is not None]
     changed += [name for name in _flag_overrides(args) if name != "total_steps"]
@@ -236,7 +229,6 @@ def _resume_plan(args: argparse.Namespace) -> TrainPlan:
 
 def sweep_item(text: str) -> tuple[str, tuple[float, ...]]:
     """argparse type of one --sweep item: NAME=V1,V2,... with NAME a sweepable PPOConfig field."""
-    from jaxsimrl.agents.ppo.config import SWEEPABLE
 
     name, _, listed = text.partition("=")
     if name not in SWEEPABLE or not listed:
@@ -252,8 +244,6 @@ def sweep_item(text: str) -> tuple[str, tuple[float, ...]]:
 
 
 def _read_config_file(path: str) -> dict[str, Any]:
-    from jaxsimrl.runs.run_dir import read_json
-
     try:
         values = read_json(path)
     except ValueError as err:

@@ -1,7 +1,8 @@
 """Entry point of the ``jaxsimrl`` console script.
 
 Each subcommand module exposes ``register(subparsers)``, which adds its parsers and sets
-``func=run_function`` on them. Heavy imports (JAX, OpenFOAM tooling) happen inside the run functions
+``func=run_function`` on them: the core's (SUBCOMMAND_MODULES), then each application's (its App's
+``commands``, jaxsimrl.apps). Heavy imports (JAX, a solver's tooling) happen inside the run functions
 so ``jaxsimrl --help`` and flag errors are instant.
 """
 
@@ -14,12 +15,11 @@ import os
 import sys
 
 from jaxsimrl.cli.errors import OneLineArgumentParser, UsageError
+from jaxsimrl.plugin import applications
 from jaxsimrl.runs.signals import exit_code, stop_word, terminate_as_interrupt
 
-# Modules that contribute subcommands.
-SUBCOMMAND_MODULES = ("jaxsimrl.cli.lorenz", "jaxsimrl.cli.eval_lorenz", "jaxsimrl.cli.foam",
-                      "jaxsimrl.cli.train_foam", "jaxsimrl.cli.eval_foam", "jaxsimrl.cli.plot",
-                      "jaxsimrl.cli.solve", "jaxsimrl.cli.family")
+# The core's modules that contribute subcommands; each application adds its own (jaxsimrl.apps).
+SUBCOMMAND_MODULES = ("jaxsimrl.cli.lorenz", "jaxsimrl.cli.eval_lorenz", "jaxsimrl.cli.plot")
 
 
 def build_parser() -> OneLineArgumentParser:
@@ -30,7 +30,7 @@ def build_parser() -> OneLineArgumentParser:
     )
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=OneLineArgumentParser)
     subparsers.required = True
-    for name in SUBCOMMAND_MODULES:
+    for name in (*SUBCOMMAND_MODULES, *(module for app in applications() for module in app.commands)):
         importlib.import_module(name).register(subparsers)
     return parser
 

@@ -1,6 +1,7 @@
 """``jaxsimrl plot RUN_DIR``: the training curves of a run as one PNG, without a notebook.
 
-Reads RUN_DIR/metrics.jsonl (and, for a foam run, the iterations column of RUN_DIR/episodes.csv)
+Reads RUN_DIR/metrics.jsonl (and, for a host-env run, the iterations column of RUN_DIR/episodes.csv, its
+failures by its application's failed outcomes, jaxsimrl.apps)
 and writes RUN_DIR/training_curves.png, or ``--out FILE.png``. Needs no JAX.
 """
 
@@ -11,6 +12,8 @@ import sys
 from pathlib import Path
 
 from jaxsimrl.cli.errors import UsageError
+from jaxsimrl.evaluation.curves import plot_training_curves, read_episode_iterations, read_rows
+from jaxsimrl.plugin import application
 
 PLOT_FILE = "training_curves.png"
 EPISODES_FILE = "episodes.csv"
@@ -24,7 +27,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "average, policy and value loss, entropy, approx. KL and clip fraction, all against env "
                     f"steps; solver iterations per episode if RUN_DIR/{EPISODES_FILE} has them) to "
                     f"RUN_DIR/{PLOT_FILE}.")
-    plot.add_argument("run_dir", metavar="RUN_DIR", help="a run directory (train-lorenz or train-foam)")
+    plot.add_argument("run_dir", metavar="RUN_DIR", help="a training run's directory")
     plot.add_argument("--out", metavar="FILE.png",
                       help=f"where to write the PNG (default: RUN_DIR/{PLOT_FILE})")
     plot.set_defaults(func=run_plot)
@@ -32,7 +35,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run_plot(args: argparse.Namespace) -> int:
     """Entry point of ``jaxsimrl plot``."""
-    from jaxsimrl.evaluation.curves import plot_training_curves, read_episode_iterations, read_rows
 
     run = Path(args.run_dir)
     out = Path(args.out) if args.out else run / PLOT_FILE
@@ -45,6 +47,21 @@ def run_plot(args: argparse.Namespace) -> int:
     if not out.parent.is_dir():
         raise UsageError(f"--out {out}: directory {out.parent} does not exist")
     title = f"{run}: {rows[-1]['update']} updates, {int(rows[-1]['env_steps']):,} env steps"
-    plot_training_curves(rows, out, title, episode_iterations=read_episode_iterations(run / EPISODES_FILE))
+    episodes = read_episode_iterations(run / EPISODES_FILE, _failed_outcomes(run))
+    plot_training_curves(rows, out, title, episode_iterations=episodes)
     sys.stdout.write(f"wrote {out}\n")
     return 0
+
+
+def _failed_outcomes(run: Path) -> frozenset[str]:
+    """The failed episode outcomes of the application whose env the run's config.json names (none if
+    no application's, or no readable config)."""
+    import json
+
+
+    try:
+        env = json.loads((run / "config.json").read_text()).get("env")
+    except (OSError, ValueError, AttributeError):
+        return frozenset()
+    app = application(env)
+    return app.failed_outcomes if app is not None else frozenset()

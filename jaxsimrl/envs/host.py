@@ -9,7 +9,7 @@ mode: ``infos["final_obs"]`` holds the pre-reset observation), so infos and epis
 the host: every ended episode is kept as ``(env_id, final_info)`` until the driver takes them, as data,
 after the jitted call (:meth:`HostVecEnv.take_episodes`); ``on_episode(env_id, final_info)``, if given,
 is also told of each as it ends (a live progress bar). A done env without a ``final_info``
-(BatchedFoamEnv's non-transition after a failed auto-reset) ended no episode.
+(a host batch's non-transition after a failed auto-reset) ended no episode.
 
 The callback never raises: solver faults are already outcomes of the batch (an ended episode with a
 cause). Anything else that goes wrong on the host (a bug, a broken pool) is caught and kept in
@@ -20,7 +20,7 @@ touching the batch, and the driver raises it as one line once the call has retur
 
 The host batch needs: ``num_envs``, ``observation_spec`` and ``action_spec`` (BoxSpec-like: low, high,
 shape), ``reset(seed=int) -> (obs, infos)`` and ``step(actions) -> (obs, reward, terminated, truncated,
-infos)``; foam_bridge.batched.BatchedFoamEnv is one.
+infos)``; an application's batch of solver cases on a pool is one.
 """
 
 from __future__ import annotations

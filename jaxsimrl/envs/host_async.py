@@ -1,6 +1,6 @@
 """AsyncHostVecEnv: an asynchronous host env batch (EnvPool-style) as the trainer's VecEnv.
 
-It wraps a batch with EnvPool's asynchronous interface, ``foam_bridge.async_batch.AsyncFoamEnv``:
+It wraps a batch with EnvPool's asynchronous interface (an application's, e.g. the OpenFOAM one's):
 ``async_envs`` envs on a worker pool, of which each ``recv`` returns the ``num_envs`` that are ready
 first (the learner's batch, B rows), with their env ids. The contract with the jitted rollout is
 HostVecEnv's (jaxsimrl.envs.host): **one** ordered io_callback per learner step, fixed shapes, never
@@ -17,7 +17,7 @@ first appearance after the reset: it completes no step). Pairing each result wit
 caused it is the rollout's job (jaxsimrl.agents.ppo.rollout_async).
 
 ``busy_s`` sums the worker seconds of the steps returned so far, from each step's ``info["step_s"]``
-(foam_bridge.timing.TimedSteps): what a utilisation measurement divides by the pool's time. An
+(the batch times its workers' steps): what a utilisation measurement divides by the pool's time. An
 episode's ``wall_time_s - solver_idle_s`` would also count the time its step waits in a worker's queue
 behind another env's, which the asynchronous batch has by design.
 """
@@ -35,7 +35,7 @@ from jaxsimrl.envs.vec import VecStep
 class AsyncHostVecEnv(HostVecEnv):
     """An asynchronous host batch behind one io_callback per learner step (see the module docstring).
     ``batch`` needs ``num_envs`` (all its envs), ``batch_size`` (the rows of a recv), the specs,
-    ``async_reset(seed)``, ``recv()`` and ``send(actions, ids)``, as AsyncFoamEnv has them."""
+    ``async_reset(seed)``, ``recv()`` and ``send(actions, ids)``, as an asynchronous host batch has them."""
 
     def __init__(self, batch: Any, on_episode: EpisodeHook | None = None) -> None:
         super().__init__(batch, on_episode)

@@ -11,7 +11,7 @@ gymnax-1.0 style: environments are stateless objects; all episode state lives in
 ``truncated``: the episode was cut for an outside reason (time cap, ...): the learner bootstraps.
 ``step`` never auto-resets; the caller (trainer or batched host env) decides when to reset.
 
-This module imports nothing heavy on purpose: foam_bridge implements the protocol without JAX.
+This module imports nothing heavy on purpose: a solver's bridge can implement the protocol without JAX.
 """
 
 from __future__ import annotations
@@ -42,7 +42,7 @@ class BoxSpec(NamedTuple):
 
 
 class Environment(Protocol, Generic[StateT, ParamsT]):
-    """The interface every jaxsimrl / foam_bridge environment implements."""
+    """The interface every environment implements, pure-JAX or host."""
 
     def default_params(self) -> ParamsT: ...
 

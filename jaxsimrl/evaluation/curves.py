@@ -10,20 +10,23 @@ number of updates per 4000-step episode, and all envs start together).
 from __future__ import annotations
 
 import math
+from collections.abc import Collection
 from pathlib import Path
 from typing import Any, NamedTuple
 
 import numpy as np
 
-from jaxsimrl.envs.foam_episodes import MOVING_WINDOW
 from jaxsimrl.runs.run_dir import MetricsLog, Row, RunDir, agent_rows, rows_with_episodes
+
+#: The moving window over episodes of a host-env run's iterations (the paper's Fig. 9 uses 100).
+MOVING_WINDOW = 100
 
 
 class EpisodeIterations(NamedTuple):
-    """SIMPLE iterations per episode of a foam run (episodes.csv), and which episodes failed."""
+    """Solver iterations per episode of a host-env run (episodes.csv), and which episodes failed."""
 
     iterations: np.ndarray  # (E,) iterations run; for a failed episode, where the solver stopped
-    failed: np.ndarray  # (E,) bool: the solver crashed, diverged or hung (foam_bridge.env.FAILURES)
+    failed: np.ndarray  # (E,) bool: its outcome is one of its application's failed_outcomes
 
 
 class EpisodeCurve(NamedTuple):
@@ -90,12 +93,10 @@ def draw_band(ax: Any, steps: np.ndarray, values: np.ndarray, label: str) -> Non
     ax.fill_between(steps, low, high, color=line.get_color(), alpha=0.25, linewidth=0)
 
 
-def read_episode_iterations(path: Path) -> EpisodeIterations | None:
-    """The ``iterations`` and failed ``outcome``s of a foam run's episodes.csv (one row per episode), if it
-    has iterations (a file without an outcome column counts no failure)."""
+def read_episode_iterations(path: Path, failed: Collection[str] = ()) -> EpisodeIterations | None:
+    """The ``iterations`` of a run's episodes.csv (one row per episode), if it has them, and which rows
+    have an ``outcome`` among ``failed`` (a file without an outcome column counts no failure)."""
     import csv
-
-    from foam_bridge.env import FAILURES
 
     if not path.is_file():
         return None
@@ -104,12 +105,12 @@ def read_episode_iterations(path: Path) -> EpisodeIterations | None:
     if not rows or "iterations" not in rows[0]:
         return None
     return EpisodeIterations(np.array([float(row["iterations"] or math.nan) for row in rows]),
-                             np.array([row.get("outcome") in FAILURES for row in rows], dtype=bool))
+                             np.array([row.get("outcome") in failed for row in rows], dtype=bool))
 
 
 def plot_training_curves(rows: list[Row], path: str | Path, title: str, window: int = 5,
                          episode_iterations: EpisodeIterations | None = None) -> None:
-    """Return, losses, entropy and KL against env steps (plus iterations per episode for a foam run)
+    """Return, losses, entropy and KL against env steps (plus iterations per episode for a host-env run)
     as one PNG at ``path``."""
     from matplotlib.figure import Figure
 

@@ -20,8 +20,10 @@ import numpy as np
 
 from jaxsimrl.agents.ppo.evaluate import ActFn, scan_episodes
 from jaxsimrl.envs.lorenz import P_MINUS, Lorenz, LorenzParams
+from jaxsimrl.evaluation.aggregate import interval_estimates, plot_performance_profile
 from jaxsimrl.policy import load_agents, load_policy
 from jaxsimrl.runs.atomic import atomic_write_json
+from jaxsimrl.runs.run_dir import spread
 
 EVAL_FILE = "eval.json"
 PLOT_FILE = "eval_trajectory.png"
@@ -164,8 +166,6 @@ def evaluate_run(run_path: Path, episodes: int = 32, stochastic: bool = False, s
                       base.speed[0], dt=float(params.dt), v_threshold=float(params.v_threshold),
                       fixed_point=P_MINUS)
     if "aggregate" in report:
-        from jaxsimrl.evaluation.aggregate import plot_performance_profile
-
         plot_performance_profile(Path(run_path) / PROFILE_FILE, [a["mean_return"] for a in report["agents"]])
         report["profile_plot"] = PROFILE_FILE
     atomic_write_json(_named(run_path, EVAL_FILE, suffix), report)
@@ -184,8 +184,6 @@ def aggregate_agents(reports: list[dict[str, Any]]) -> dict[str, Any]:
     stratified-bootstrap intervals, :func:`jaxsimrl.evaluation.aggregate.interval_estimates`),
     ``agents`` (each agent's own entries) and ``plotted_agent`` (the median agent by mean return, whose
     trajectory is plotted)."""
-    from jaxsimrl.evaluation.aggregate import interval_estimates
-    from jaxsimrl.runs.run_dir import spread
 
     means = [report["mean_return"] for report in reports]
     return {**{key: reports[0][key] for key in _SHARED}, "num_agents": len(reports),

@@ -9,12 +9,11 @@ each return plain data (numpy arrays in a NamedTuple) and have a matplotlib ``pl
 - :func:`action_sensitivity` / :func:`plot_sensitivity`: d action / d observation along a
   trajectory (``jax.jacobian``), as a heat map over time;
 - :func:`hidden_pca` / :func:`plot_hidden_pca`: the LSTM hidden state of a trajectory on its leading
-  principal components, coloured by |velocity|, reward or any record key;
-- :func:`factor_history` / :func:`plot_factor_history` (train-foam runs): alpha_u and alpha_p against
-  the SIMPLE iteration and against the residual they answered, per inlet velocity.
+  principal components, coloured by |velocity|, reward or any record key.
+
+An application adds its own (the OpenFOAM one's factor histories: jaxsimrl.apps.foam.introspect).
 """
 
-from jaxsimrl.introspect.foam_factors import FactorHistory, factor_history, plot_factor_history
 from jaxsimrl.introspect.hidden import HiddenPCA, hidden_pca, plot_hidden_pca
 from jaxsimrl.introspect.loading import LoadedPolicy, load_agents, load_policy
 from jaxsimrl.introspect.sensitivity import Sensitivity, action_sensitivity, plot_sensitivity
@@ -28,7 +27,6 @@ from jaxsimrl.introspect.slices import (
 )
 from jaxsimrl.policy.distribution import ActionDistribution
 
-__all__ = ["ActionDistribution", "FactorHistory", "HiddenPCA", "LoadedPolicy", "PolicyProfile", "PolicySlice",
-           "Sensitivity", "action_sensitivity", "factor_history", "hidden_pca", "load_agents", "load_policy",
-           "plot_factor_history", "plot_hidden_pca", "plot_policy_profile", "plot_policy_slice",
-           "plot_sensitivity", "policy_profile", "policy_slice"]
+__all__ = ["ActionDistribution", "HiddenPCA", "LoadedPolicy", "PolicyProfile", "PolicySlice", "Sensitivity",
+           "action_sensitivity", "hidden_pca", "load_agents", "load_policy", "plot_hidden_pca",
+           "plot_policy_profile", "plot_policy_slice", "plot_sensitivity", "policy_profile", "policy_slice"]

@@ -2,8 +2,8 @@
 
 A :class:`LoadedPolicy` is a :class:`jaxsimrl.policy.TrainedPolicy` (loading, acting, the action
 distribution and the value live there, one layer down) plus :meth:`LoadedPolicy.rollout` in the run's
-env: a jitted scan for a pure-JAX env (:mod:`jaxsimrl.introspect.trajectory`), real simpleFoam episodes
-for a train-foam run (:mod:`jaxsimrl.introspect.foam_rollout`).
+env: a jitted scan for a pure-JAX env (:mod:`jaxsimrl.introspect.trajectory`), else its application's
+rollout (the App's ``rollout``, jaxsimrl.apps: real simpleFoam episodes for a train-foam run).
 """
 
 from __future__ import annotations
@@ -13,8 +13,8 @@ from typing import Any
 
 import numpy as np
 
-from jaxsimrl.introspect.foam_rollout import foam_rollout
 from jaxsimrl.introspect.trajectory import rollout
+from jaxsimrl.plugin import application, load
 from jaxsimrl.policy import loading
 from jaxsimrl.policy.trained import TrainedPolicy
 
@@ -31,14 +31,18 @@ class LoadedPolicy(TrainedPolicy):
         """Run ``episodes`` episodes for ``steps`` steps (default: a whole episode) in the run's env.
 
         A pure-JAX env (Lorenz): one jitted scan, see :func:`jaxsimrl.introspect.trajectory.rollout` for
-        the record's keys. A train-foam run: real simpleFoam episodes, ``episodes`` per inlet velocity of
-        ``velocities=`` on ``pool=`` workers, see :func:`jaxsimrl.introspect.foam_rollout.foam_rollout`.
+        the record's keys. Another env: its application's rollout, which takes ``options`` (a train-foam
+        run: real simpleFoam episodes, ``episodes`` per inlet velocity of ``velocities=`` on ``pool=``
+        workers, :func:`jaxsimrl.apps.foam.introspect.rollout.foam_rollout`).
         """
         if self.env is None:
-            return foam_rollout(self, env_params, steps, episodes, seed, deterministic, **options)
+            app = application(self.record.get("env"))
+            if app is None or app.rollout is None:
+                raise ValueError(f"rollout: no application rolls out env {self.record.get('env')!r}")
+            return load(app.rollout)(self, env_params, steps, episodes, seed, deterministic, **options)
         if options:
             raise ValueError(f"rollout: unknown option(s) {', '.join(sorted(options))} for this env "
-                             "(velocities= and pool= are for train-foam runs)")
+                             "(they are for an application's rollout)")
         return rollout(self, env_params, steps, episodes, seed, deterministic)
 
 

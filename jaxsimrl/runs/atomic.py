@@ -1,7 +1,7 @@
-"""Atomic file writes for run directories and result files: foam_bridge's writers, plus JSON.
+"""Atomic file writes for run directories and result files: the ``atomicfile`` package's, plus JSON.
 
-A reader sees either the old file or the complete new one, never a partial one (see
-``foam_bridge.atomic``, the one implementation; foam_bridge cannot import jaxsimrl, so it lives there).
+A reader sees either the old file or the complete new one, never a partial one (``atomicfile`` is the
+one implementation, shared with foam_bridge, which imports nothing of jaxsimrl).
 """
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ import json
 import os
 from typing import Any
 
-from foam_bridge.atomic import atomic_write_bytes, atomic_write_text, file_mode
+from atomicfile import atomic_write_bytes, atomic_write_text, file_mode
 
 __all__ = ["atomic_write_bytes", "atomic_write_json", "atomic_write_text", "file_mode"]
 

@@ -74,9 +74,9 @@ class TrainingProgress:
         self.console.print(text, soft_wrap=True)
 
 
-class FoamProgress:
-    """Progress of a host-env (OpenFOAM) run, by episodes: done of the target, the moving mean of the
-    iterations to converge over the last 100 episodes (what the paper plots), failures by outcome,
+class EpisodeProgress:
+    """Progress of a host-env run (a solver's cases on a pool), by episodes: done of the target, the moving
+    mean of the iterations to converge over the last 100 episodes (what the paper plots), failures by outcome,
     episodes per hour and the pool's utilisation. A live bar on a TTY, one plain line per update off it.
     The bar counts every episode as it ends (:meth:`episode_ended`, told by the host env), not only
     after each update; the count comes first and the statistics last, so a narrow terminal (80 columns)
@@ -99,7 +99,7 @@ class FoamProgress:
         self._task = None
         self._ended = 0  # episodes ended since the last update (not in the log yet)
 
-    def __enter__(self) -> FoamProgress:
+    def __enter__(self) -> EpisodeProgress:
         if self.live:
             self._progress = Progress(
                 TextColumn("[bold]{task.description}", table_column=Column(no_wrap=True)),

@@ -15,6 +15,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from jaxsimrl.runs.progress import TrainingProgress
+from jaxsimrl.runs.run_dir import MetricsLog, summarise, summarise_agents
+from jaxsimrl.runs.tensorboard import tensorboard_log
 from jaxsimrl.training.common import ResumeError, RunInputError, config_record, restore
 
 Sweep = tuple[tuple[str, tuple[float, ...]], ...]  # (field, each agent's value), hashable for the caches
@@ -69,9 +72,6 @@ def train_lorenz(plan: TrainPlan, run: Any, trainer: Any, *, tensorboard: bool =
     Raises RunInputError (a batch too large for memory, a checkpoint that does not fit) before anything
     is written, KeyboardInterrupt after a saved chunk."""
     from jaxsimrl.runs.checkpoint import Checkpoints
-    from jaxsimrl.runs.progress import TrainingProgress
-    from jaxsimrl.runs.run_dir import summarise, summarise_agents
-    from jaxsimrl.runs.tensorboard import tensorboard_log
     from jaxsimrl.runs.training import Session, train
 
     with Checkpoints(run.checkpoints) as checkpoints, tensorboard_log(run.path, tensorboard) as tb:
@@ -107,7 +107,6 @@ def _starting_point(plan: TrainPlan, trainer: Any, run: Any, checkpoints: Any) -
     import jax
 
     from jaxsimrl.agents.ppo.batch import seed_keys
-    from jaxsimrl.runs.run_dir import MetricsLog
 
     key = jax.random.PRNGKey(plan.seed) if plan.seeds is None else seed_keys(plan.seeds)
     if not plan.resume:

@@ -4,8 +4,8 @@ window of updates, and its failures; the median over the cases at the end.
     .venv/bin/python experiments/controller/family-v1-setup/progress.py \
         experiments/controller/family-v1 [--window 5]
 
-A case's own iterations are 100 / its reward_scale (jaxsimrl.cli.foam_family.REWARD_UNIT). An episode that
-failed or reached its budget counts at its budget (a case's reward does the same).
+A case's own iterations are 100 / its reward_scale (jaxsimrl.apps.foam.cli.train_family.REWARD_UNIT). An
+episode that failed or reached its budget counts at its budget (a case's reward does the same).
 """
 
 from __future__ import annotations

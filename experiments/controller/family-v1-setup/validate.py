@@ -20,10 +20,10 @@ import statistics
 import tempfile
 from pathlib import Path
 
+from jaxsimrl.apps.foam.solve import solve_case
+from jaxsimrl.apps.foam.solve.own import run_own
 from jaxsimrl.policy import load_policy
 from jaxsimrl.runs.checkpoint import Checkpoints
-from jaxsimrl.solve import solve_case
-from jaxsimrl.solve.own import run_own
 
 
 def own_iterations(cases: list[Path], scratch: Path) -> dict[str, int]:

@@ -13,7 +13,13 @@ from __future__ import annotations
 from pathlib import Path
 
 from foam_bridge.grid import read_grid_csv, write_grid_csv
-from jaxsimrl.evaluation.family import FAMILY_BEST_JSON, family_best, family_best_json, grid_cap, summary_line
+from jaxsimrl.apps.foam.evaluation.family import (
+    FAMILY_BEST_JSON,
+    family_best,
+    family_best_json,
+    grid_cap,
+    summary_line,
+)
 from jaxsimrl.runs.atomic import atomic_write_json
 
 HERE = Path(__file__).parent

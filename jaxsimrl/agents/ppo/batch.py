@@ -57,7 +57,7 @@ class SeedBatch:
         if num_agents < 1:
             raise ValueError(f"a seed batch needs at least one agent, got {num_agents}")
         if getattr(trainer.vec, "single_device", False):  # its envs are stepped on the host, one batch
-            raise ValueError("a host env batch (e.g. OpenFOAM) cannot be vmapped over agents")
+            raise ValueError("a host env batch (a solver's cases on a pool) cannot be vmapped over agents")
         self.hparams = _check_hparams(hparams or {}, num_agents)
         self.trainer, self.num_agents = trainer, num_agents
         self.config, self.num_updates = trainer.config, trainer.num_updates

@@ -1,0 +1,1 @@
+"""jaxsimrl.apps.foam.cli."""

@@ -1,0 +1,314 @@
+"""Whether the controller's converged result is the same answer as another run's (``solve --compare``).
+
+Two runs of one case that both met its ``residualControl`` are both "converged", yet they stop at
+different points near the discrete solution: a normalised initial residual below r bounds the last
+change per iteration, not the distance to the solution, and a run that contracts slowly (low factors)
+stops farther from it (foam_bridge.fields). So the question is not "are they equal" but "do they differ
+by more than two runs converged to this criterion at the case's own pace differ". :func:`compare_results`
+answers it for every field the case solves and every function object's final values.
+
+Measures (the other run, the case's own or the constant one, is the reference b; the controller's is a):
+
+- fields: ``||a - b|| / ||b||`` over the internal field, all cells and components (cells unweighted, as
+  foam_bridge.fields.relative_l2); a uniform field is broadcast to the other's cells.
+- function objects: every value (a number, or a vector as a whole, as for the fields) of the rows of the
+  final time of each time series under ``postProcessing/`` (forces, coefficients, probes, fieldMinMax,
+  surfaceFieldValue...): ``|a - b| / max(|b|, SCALE_FLOOR x the row's largest |value|)``. The floor keeps a
+  value that is noise next to its row (a side-force coefficient of 1e-24 in a 2D case) from turning
+  round-off into a huge relative difference; it is small so that a drag coefficient 100x below the lift
+  is still measured against itself. Left out: outputs that are not results (NOT_RESULTS: residuals,
+  timing), discrete columns (DISCRETE_COLUMNS: where a minimum sits), files that are not time series
+  (VTK streamlines, sampled sets).
+
+Tolerance, from r = the loosest threshold of the case's residualControl (the equation that stops last
+sets how far the coupled fields are from the solution): fields ``FIELD_FACTOR x r``, function objects
+``FUNCTION_OBJECT_FACTOR x r``. Measured on pitzDaily (benchmarks/bench_agreement.py; p 1e-2, U and
+k/epsilon 1e-3, and all 10x tighter), each run against a reference 100x tighter (2000 iterations, where
+controller and own agree to 4e-5): the controller's and the own run's fields stop 1.0-1.9 r from the
+solution at both criteria (the distance scales with r), a slow constant run (0.7/0.5/0.7, 3-4x the
+iterations) 3.7-7.5 r, own runs converged to a 3x and a 10x looser criterion 3.6 r and 10.8 r. So two
+runs at the case's own pace differ by at most ~4 r (measured: 1.5-1.6 r), and a run stopped at a 10x
+looser criterion by ~10 r (measured: 10.0 r): 5 r separates them. Function objects move more than field
+norms between the same two runs (a wall's pressure force, a probe near the outlet where p is small):
+controller against own 4.8 r at the tutorial's criterion and 8.1 r at 10x tighter, the 10x looser run
+26 r, hence 10 r. A value that is a small difference of large contributions (the pressure moment of two
+opposite walls: 5.4 r and 30 r) can differ by more than that between any two converged runs: a flag then
+says that it is not settled at this criterion, in either run. The rule is calibrated on one case; on T3A
+(benchmarks/RESULTS_solve.md) the transition model's ReThetat stays 150-210 r from the solution in both
+runs at its criterion, and the two differ by 70 r: flagged, rightly, though the controller's is the closer
+one. Only runs that both converged are compared.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from foam_bridge import POST_PROCESSING, latest_time, relative_l2
+
+#: Tolerances: these factors x the case's loosest residualControl threshold (see the module docstring).
+FIELD_FACTOR = 5.0
+FUNCTION_OBJECT_FACTOR = 10.0
+#: A function-object value is measured against at least this fraction of its row's largest |value|.
+SCALE_FLOOR = 1e-3
+#: Function-object files that hold no result of the run: residuals and timing differ by construction.
+NOT_RESULTS = ("solverInfo.dat", "residuals.dat", "timeInfo.dat", "time.dat")
+#: Columns that are not continuous in the solution: where a minimum or maximum sits (a cell centre, which
+#: jumps to a neighbouring cell on a near tie) and which processor holds it.
+DISCRETE_COLUMNS = ("location(", "processor")
+#: A cell of a function object's table: a word with an optional parenthesised tail, or a parenthesised
+#: group (a vector); "location(min)" and "(1 2 3)" are one cell each.
+_CELL = re.compile(r"[^\s()]*\([^()]*\)|[^\s()]+")
+
+
+def tolerances(criterion: Mapping[str, float]) -> tuple[float, float]:
+    """(fields', function objects') agreement tolerance of a case with this residualControl ({field:
+    threshold})."""
+    loosest = max(criterion.values())
+    return FIELD_FACTOR * loosest, FUNCTION_OBJECT_FACTOR * loosest
+
+
+def compare_results(ours: Path, theirs: Path, fields: Sequence[str], criterion: Mapping[str, float],
+                    converged: tuple[bool, bool], label: str = "own",
+                    same_run: bool = False) -> dict[str, Any]:
+    """solve.json's ``compare.<label>.agreement``: the controller's case ``ours`` (its latest time
+    directory) against the ``label`` run's case ``theirs``; ``fields``: the case's solved fields;
+    ``converged``: (ours, theirs). With a run that did not converge there is no figure, only the reason.
+    ``same_run``: ``ours`` holds that run's result (the controller did not apply, or failed): the
+    comparison is exact by construction, and says so."""
+    if not all(converged):
+        who = [name for name, done in zip(_runs(label), converged, strict=True) if not done]
+        who = [f"the {label} run (the controller's result is its)"] if same_run else who
+        return {"agree": None, "reason": f"{' and '.join(who)} did not converge",
+                "same_run": same_run}
+    if not criterion:  # converged by the case's own function objects (runTimeControl): no threshold
+        return {"agree": None, "reason": "the case has no residual criterion to derive a tolerance from (its "
+                                         "function objects ended the runs)", "same_run": same_run}
+    for_fields, for_objects = tolerances(criterion)
+    entries = {name: _entry(value, for_fields, note) for name, (value, note) in
+               ((name, field_difference(ours, theirs, name, label)) for name in fields)}
+    objects, notes = function_object_differences(ours, theirs, label)
+    quantities = {name: _entry(value, for_objects) for name, value in objects.items()}
+    notes += [f"field {name}: {entry['note']}" for name, entry in entries.items() if "note" in entry]
+    agree = all(entry["ok"] is True for entry in (*entries.values(), *quantities.values()))
+    return {"agree": agree, "tolerance": {"fields": for_fields, "function_objects": for_objects},
+            "rule": f"fields {FIELD_FACTOR:g}, function objects {FUNCTION_OBJECT_FACTOR:g} x the loosest "
+                    f"residualControl threshold ({max(criterion.values()):g})",
+            "fields": entries, "function_objects": quantities, "notes": notes, "same_run": same_run}
+
+
+def _runs(label: str) -> tuple[str, str]:
+    return "the controller's run", f"the {label} run"
+
+
+def _entry(value: float | None, tol: float, note: str = "") -> dict[str, Any]:
+    entry: dict[str, Any] = {"value": value, "tolerance": tol, "ok": None if value is None else value <= tol}
+    return {**entry, "note": note} if note else entry
+
+
+def read_internal(path: Path) -> tuple[np.ndarray, bool] | None:
+    """(internal field, uniform?) of one field file (ascii or binary; ``path`` or ``path.gz``); None if
+    it is missing or unreadable. A uniform field comes back as its one value."""
+    from foamlib import FoamFieldFile
+
+    found = [p for p in (path, path.with_name(path.name + ".gz")) if p.is_file()]
+    if not found:
+        return None
+    try:
+        file = FoamFieldFile(found[0])
+        values, kind = np.asarray(file.internal_field, dtype=np.float64), str(file.class_)
+    except Exception:  # noqa: BLE001 - an unreadable field is "not compared" (with a note), not a crash
+        return None
+    # foamlib gives a uniform field as its value: ndim 0 for scalars, 1 for vectors (a scalar field's
+    # cells are ndim 1 too, hence the class)
+    return values, values.ndim < (1 if "Scalar" in kind else 2)
+
+
+def field_difference(ours: Path, theirs: Path, name: str, label: str = "own") -> tuple[float | None, str]:
+    """(relative L2 difference of field ``name`` between the two cases' final times, note); the value is
+    None, with the reason in the note, when either run lacks a readable field."""
+    read = [read_internal(time / name) if time is not None else None
+            for time in (latest_time(ours), latest_time(theirs))]
+    missing = [who for who, field in zip(_runs(label), read, strict=True) if field is None]
+    if missing:
+        return None, f"missing or unreadable in {' and '.join(missing)}"
+    (a, a_uniform), (b, b_uniform) = read  # type: ignore[misc]
+    a = np.broadcast_to(a, b.shape) if a_uniform and not b_uniform else a
+    b = np.broadcast_to(b, a.shape) if b_uniform and not a_uniform else b
+    if a.shape != b.shape:
+        return None, f"shapes differ ({a.shape} against {b.shape})"
+    value = relative_l2(a, b)
+    if value is None:  # a zero reference: equal only if both are zero
+        value = 0.0 if not np.any(a) else math.inf
+    return value, ""
+
+
+#: One file's final time: {row key (its text cells: a patch or field name, "" if none): {column: value}};
+#: a value is a tuple: one number, or a vector's components.
+Table = dict[str, dict[str, tuple[float, ...]]]
+
+
+def function_object_differences(ours: Path, theirs: Path, label: str = "own") -> tuple[dict[str, float],
+                                                                                       list[str]]:
+    """({quantity: relative difference} over the function objects' final values, notes on the files that
+    could not be compared); see the module docstring for the measure."""
+    files = (time_series(ours), time_series(theirs))
+    values: dict[str, float] = {}
+    notes: list[str] = []
+    for key in sorted(files[0].keys() | files[1].keys()):
+        a, b = (final_rows(found[key]) if key in found else None for found in files)
+        if a is None and b is None:
+            continue  # not a time series in either run (VTK streamlines, sampled sets)
+        if a is None or b is None:
+            notes.append(f"{key}: a time series in {_runs(label)[a is None]} only, not compared")
+        elif _layout(a) != _layout(b):
+            notes.append(f"{key}: different rows or columns in the two runs, not compared")
+        else:
+            values.update(_table_differences(key, a, b))
+    return values, notes
+
+
+def _layout(table: Table) -> dict[str, list[str]]:
+    return {row: sorted(columns) for row, columns in table.items()}
+
+
+def _table_differences(key: str, ours: Table, theirs: Table) -> dict[str, float]:
+    values = {}
+    for row, columns in theirs.items():
+        magnitudes = [float(np.linalg.norm(v)) for v in (*columns.values(), *ours[row].values())]
+        scale = SCALE_FLOOR * max((m for m in magnitudes if math.isfinite(m)), default=0.0)
+        for column, reference in columns.items():
+            name = f"{key} [{row}] {column}" if row else f"{key} {column}"
+            values[name] = relative_difference(ours[row][column], reference, scale)
+    return values
+
+
+def relative_difference(value: Sequence[float] | float, reference: Sequence[float] | float,
+                        scale: float = 0.0) -> float:
+    """``|value - reference| / max(|reference|, scale)`` (vectors: their norms); 0 for equal values (also
+    two zeros, two NaNs), inf when only one is finite or the denominator is 0."""
+    a, b = np.asarray(value, dtype=np.float64), np.asarray(reference, dtype=np.float64)
+    if np.array_equal(a, b, equal_nan=True):
+        return 0.0
+    denominator = max(float(np.linalg.norm(b)), scale)
+    if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))) or denominator == 0:
+        return math.inf
+    return float(np.linalg.norm(a - b)) / denominator
+
+
+def time_series(case: Path) -> dict[str, Path]:
+    """{``<object>/<file>``: file} of the case's function-object output (``postProcessing/<object>/
+    <startTime>/<file>``), results only (not NOT_RESULTS). A restart starts a new start-time directory,
+    so the latest holding a file is the one with its final values."""
+    root = case / POST_PROCESSING
+    latest: dict[str, tuple[float, Path]] = {}
+    for path in sorted(root.rglob("*")) if root.is_dir() else ():
+        if not path.is_file() or path.name in NOT_RESULTS:
+            continue
+        parts = path.relative_to(root).parts
+        at = max((i for i, part in enumerate(parts[:-1]) if _number(part) is not None), default=None)
+        start = -math.inf if at is None else float(parts[at])
+        key = "/".join(part for i, part in enumerate(parts) if i != at)
+        if key not in latest or start >= latest[key][0]:
+            latest[key] = (start, path)
+    return {key: path for key, (_, path) in latest.items()}
+
+
+def final_rows(path: Path) -> Table | None:
+    """The rows of the file's last time (several for per-patch or per-field output; of repeated ones the
+    last); None if it is not a time series: no ``# Time`` header, or a row that does not start with a
+    time (VTK, binary or sampled-set files)."""
+    try:
+        lines = path.read_text().splitlines()
+    except (OSError, UnicodeDecodeError):
+        return None
+    headers = [_CELL.findall(line.lstrip("#")) for line in lines if line.startswith("#")]
+    rows = [_CELL.findall(line) for line in lines if line.strip() and not line.startswith("#")]
+    times = [_number(row[0]) for row in rows]
+    if not rows or None in times or not any(h[:1] and h[0].lower() == "time" for h in headers):
+        return None
+    table: Table = {}
+    for row in (row for row, time in zip(rows, times, strict=True) if time == times[-1]):
+        # the column names: the last header line with one name per cell (probes name them on a
+        # "# Probe 0 1" line above "# Time"), else the cells' positions
+        names = next((h[1:] for h in reversed(headers) if len(h) == len(row)),
+                     [f"column {i}" for i in range(1, len(row))])
+        key, values = _row_values(row[1:], names)
+        table[key] = values
+    return table
+
+
+def _row_values(cells: Sequence[str], names: Sequence[str]) -> tuple[str, dict[str, tuple[float, ...]]]:
+    """(the row's key: its text cells, {column: value}); a vector cell is one value, its components."""
+    text: list[str] = []
+    values: dict[str, tuple[float, ...]] = {}
+    for cell, name in zip(cells, names, strict=True):
+        numbers = _numbers(cell)
+        if numbers is None:
+            text.append(cell)
+        elif name.startswith(DISCRETE_COLUMNS):
+            continue
+        else:
+            values[_vector_name(name)] = tuple(numbers)
+    return " ".join(text), values
+
+
+def _vector_name(name: str) -> str:
+    """A column's name; a vector's named by its components, "(total_x total_y total_z)", is "total"."""
+    inner = name[1:-1].split() if name.startswith("(") and name.endswith(")") else []
+    return inner[0].rsplit("_", 1)[0] if inner else name
+
+
+def _numbers(cell: str) -> list[float] | None:
+    inner = cell[1:-1] if cell.startswith("(") and cell.endswith(")") else cell
+    try:
+        return [float(token) for token in inner.split()]
+    except ValueError:
+        return None
+
+
+def _number(text: str) -> float | None:
+    try:
+        return float(text)
+    except ValueError:
+        return None
+
+
+def summary_line(label: str, agreement: Mapping[str, Any]) -> str:
+    """The printed line: agreement with the worst field and function-object value, or the worst
+    offenders, or why there is no figure."""
+    if agreement.get("agree") is None:
+        return f"no agreement figure with {label}: {agreement['reason']}"
+    tol = agreement["tolerance"]
+    fields, objects = agreement["fields"], agreement["function_objects"]
+    measured = (f"{_measured('fields max rel. L2', fields, tol['fields'])}; "
+                + (_measured("function objects max", objects, tol["function_objects"]) if objects else
+                   "no function-object values"))
+    if agreement["agree"]:
+        same = " (the same run: the controller's result is this run's)" if agreement.get("same_run") else ""
+        return f"results agree with {label}{same}: {measured}"
+    offenders = [(name, entry) for name, entry in (*fields.items(), *objects.items())
+                 if entry["ok"] is not True]
+    # worst first; a quantity one run lacks ("not compared") before any measured one
+    offenders.sort(key=lambda item: -math.inf if item[1]["value"] is None else -item[1]["value"])
+    named = ", ".join(f"{name} {_value(entry['value'])}" for name, entry in offenders[:3])
+    more = f" and {len(offenders) - 3} more" if len(offenders) > 3 else ""
+    return f"results DIFFER from {label}: {named}{more}; {measured}"
+
+
+def _measured(what: str, entries: Mapping[str, Mapping[str, Any]], tol: float) -> str:
+    """"<what> <the largest value> (<its name>) <= tol <tol>" ("> tol" above it)."""
+    measured = [(entry["value"], name) for name, entry in entries.items() if entry["value"] is not None]
+    if not measured:
+        return f"{what}: none measured"
+    value, name = max(measured, key=lambda pair: pair[0])  # the first of equal ones
+    return f"{what} {_value(value)} ({name}) {'<=' if value <= tol else '>'} tol {tol:.0e}"
+
+
+def _value(value: float | None) -> str:
+    return "not compared" if value is None else f"{value:.1e}"

@@ -1,0 +1,237 @@
+"""``solve``'s report: ``OUT/solve.json`` (atomic), ``OUT/solve.png`` and the printed summary.
+
+solve.json holds: status ("incomplete" while running, "interrupted", "failed", "complete"), the case and
+output, the controller's provenance, the settings (criterion, box, confirmation factor, budget, the case
+field observed for each field the controller observes), the result (outcome, converged per the
+confirmation check, iterations, wall time, the solver's CPU time, where the fields come from, solve's
+overhead beyond the solver's own work), every step's factors and residuals, the fallback events, the
+convergence checks, the per-iteration residual histories and, with --compare, the comparison runs side
+by side with the ratios controller / own and whether their converged results agree with the
+controller's (``agreement``, jaxsimrl.apps.foam.solve.agreement).
+"""
+
+from __future__ import annotations
+
+import datetime
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from foam_bridge import LogParser, field_residual
+from jaxsimrl.apps.foam.solve.agreement import summary_line
+from jaxsimrl.apps.foam.solve.criterion import describe
+from jaxsimrl.runs.atomic import atomic_write_bytes, atomic_write_json
+
+SOLVE_JSON = "solve.json"
+SOLVE_PNG = "solve.png"
+
+
+@dataclass(frozen=True)
+class SolveReport:
+    """The report of one solve (``data`` is solve.json's content)."""
+
+    data: dict[str, Any]
+
+    @property
+    def converged(self) -> bool:
+        return bool(self.data["result"]["converged"])
+
+    @property
+    def iterations(self) -> int:
+        return int(self.data["result"]["iterations"])
+
+    @property
+    def fallback(self) -> list[dict[str, Any]]:
+        return list(self.data["fallback"])
+
+    def summary(self) -> str:
+        """The printed summary: a few lines."""
+        result = self.data["result"]
+        lines = [f"{self.data['case']} -> {self.data['out']}",
+                 f"  {result['outcome']} "
+                 f"({_verdict(result)}) "
+                 f"after {result['iterations']} iterations, {result['wall_time_s']:.1f} s wall, solver CPU "
+                 f"{result['solver_cpu_time_s']:.1f} s; fields from {result['fields_from']}",
+                 *_criterion_line(self.data),
+                 f"  overhead beyond the solver's own work: {_percent(result['overhead_fraction'])} of wall "
+                 f"time"]
+        lines += [f"  fallback ({event['kind']}) at {event['at_iteration']}: {event['reason']}"
+                  for event in self.data["fallback"]]
+        for name, other in self.data.get("compare", {}).items():
+            lines.append(f"  {name}: {'converged' if other['converged'] else 'not converged'} after "
+                         f"{other['iterations']} iterations, {other['wall_time_s']:.1f} s; "
+                         f"controller/{name}: iterations {other['ratio_iterations']:.3f}, "
+                         f"wall time {other['ratio_wall_time']:.3f}")
+            if "agreement" in other:
+                lines.append(f"    {summary_line(name, other['agreement'])}")
+        return "\n".join(lines)
+
+
+def _verdict(result: dict[str, Any]) -> str:
+    """Converged and confirmed at a fixed relaxation, converged (by the case's own function object, or
+    by the case's own run that replaced the controlled one: nothing was confirmed), or not converged."""
+    if not result["converged"]:
+        return "NOT converged"
+    return "converged, confirmed" if str(result.get("converged_by")).endswith("confirmed") else "converged"
+
+
+def _criterion_line(data: dict[str, Any]) -> list[str]:
+    """The criterion, where it came from, what ended the run (jaxsimrl.apps.foam.solve.criterion), where it
+    started."""
+    settings, result = data["settings"], data["result"]
+    if "criterion_from" not in settings:
+        return []
+    line = f"  criterion {describe(settings['criterion'], settings['criterion_from'])}"
+    if result.get("converged_by"):
+        line += f"; converged by {result['converged_by']}"
+    if settings.get("started_from"):
+        line += f"; started from {settings['started_from']}"
+    return [line]
+
+
+def _percent(fraction: float | None) -> str:
+    return "not measured (a fallback rerun)" if fraction is None else f"{100 * fraction:.1f} %"
+
+
+def write_status(out: Path, status: str, case: Path, error: str = "") -> None:
+    """solve.json before (or instead of) the report: what the directory holds (``error``: why it failed,
+    or for "interrupted" how it was stopped)."""
+    holds = {"incomplete": "a solve in progress or killed: no result yet; the case files may be partial",
+             "interrupted": f"a solve {error or 'interrupted'} before its end: no result; every solver it "
+                            f"started was stopped", "failed": f"no result: {error}"}[status]
+    atomic_write_json(out / SOLVE_JSON, {"status": status, "case": str(case), "out": str(out),
+                                         "holds": holds, "time_utc": _now()})
+
+
+def residual_history(history: list[dict[str, float]], fields: list[str]) -> dict[str, list[float | None]]:
+    """{field: one initial residual per iteration (vector fields: the largest component)}."""
+    return {name: [field_residual(row, name) for row in history] for name in fields}
+
+
+def build_report(case: Path, out: Path, controller: Any, cfg: Any, run: Any, rescue: Any,
+                 time_name: str | None, wall: float, comparisons: dict[str, Any],
+                 episode: Path, observed: dict[str, str] | None = None) -> SolveReport:
+    """Everything solve.json holds (see the module docstring); ``observed``: {the policy's observed
+    field: the case field that stands for it} (jaxsimrl.apps.foam.solve.fields), None if it observes none."""
+    fields = list(cfg.convergence)
+    parser = LogParser("", "")
+    log = episode / "log.simpleFoam"
+    if log.is_file():
+        parser.feed(log.read_bytes())
+        parser.finish()
+    record = run.record
+    busy = float(record.get("wall_time_s", run.wall_time_s)) - float(record.get("solver_idle_s", 0.0))
+    cpu = float(record.get("solver_time_s", parser.execution_time))
+    iterations = run.iterations
+    if rescue is not None:
+        busy, cpu = busy + rescue.wall_time_s, cpu + rescue.cpu_time_s
+        iterations += rescue.iterations
+    converged = run.outcome == "converged" if rescue is None else rescue.converged
+    rescued = "converged" if rescue is not None and rescue.converged else "not converged"
+    result = {"outcome": run.outcome if rescue is None else rescued,
+              "converged": converged, "iterations": iterations, "controlled_iterations": run.iterations,
+              "wall_time_s": wall, "solver_cpu_time_s": cpu, "solver_busy_s": busy,
+              # a fallback rerun may have overlapped the controlled run (--compare): no overhead figure then
+              "overhead_fraction": max(wall - busy, 0.0) / wall if wall > 0 and rescue is None else None,
+              "fields_from": _fields_from(run, rescue),
+              "time_directory": time_name, "cause": run.cause}
+    data = {"status": "complete", "case": str(case), "out": str(out), "time_utc": _now(),
+            "cores": os.cpu_count(), "controller": controller.provenance,
+            "settings": {"criterion": dict(cfg.convergence), "confirm_alpha_u": cfg.confirm_alpha_u,
+                         "action_low": list(cfg.action_low), "action_high": list(cfg.action_high),
+                         "interval": cfg.interval, "max_iterations": cfg.max_iterations,
+                         "observed_fields": observed},
+            "result": result, "fallback": run.events, "steps": run.steps,
+            "confirmations": record.get("confirmations", []),
+            "residuals": {"controlled": residual_history(parser.history, fields)}}
+    if rescue is not None:
+        data["residuals"]["fallback_rerun"] = residual_history(rescue.history, fields)
+    data["compare"] = {name: _comparison(other, result) for name, other in comparisons.items()}
+    for name, other in comparisons.items():
+        data["residuals"][name] = residual_history(other.history, fields)
+    return SolveReport(data)
+
+
+def _fields_from(run: Any, rescue: Any) -> str:
+    """Who set the factors of the run whose fields ``out`` holds."""
+    if rescue is not None and run.outcome == "not run":
+        return "the case's own settings (the controller does not apply)"
+    if rescue is not None:
+        return "the case's own settings (fallback rerun)"
+    switched = [event["at_iteration"] for event in run.events if event["kind"] == "watchdog"]
+    if switched:
+        return f"the controller, then the case's own factors from iteration {switched[0]} (watchdog)"
+    return "the controller"
+
+
+def _ratio(a: float, b: float) -> float:
+    return a / b if b else float("nan")
+
+
+def _comparison(other: Any, result: dict[str, Any]) -> dict[str, Any]:
+    ratio = _ratio
+    return {"case": other.case, "converged": other.converged, "iterations": other.iterations,
+            "wall_time_s": other.wall_time_s, "solver_cpu_time_s": other.cpu_time_s, "error": other.error,
+            "ratio_iterations": ratio(result["iterations"], other.iterations),
+            "ratio_wall_time": ratio(result["wall_time_s"], other.wall_time_s),
+            "ratio_solver_cpu_time": ratio(result["solver_cpu_time_s"], other.cpu_time_s)}
+
+
+def write_report(out: Path, report: SolveReport) -> None:
+    """solve.png, then solve.json (last: status "complete" means everything is there)."""
+    atomic_write_bytes(out / SOLVE_PNG, plot_png(report.data))
+    atomic_write_json(out / SOLVE_JSON, report.data)
+
+
+def preload_plotting() -> None:
+    """Import matplotlib (~1 s) ahead of :func:`plot_png`, e.g. in a thread while the solver runs."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot  # noqa: F401
+
+
+def plot_png(data: dict[str, Any]) -> bytes:
+    """Residual histories (log scale) over the factors the controller used, as PNG bytes."""
+    import io
+
+    preload_plotting()
+    import matplotlib.pyplot as plt
+
+    figure, (top, bottom) = plt.subplots(2, 1, figsize=(8, 7), sharex=True, height_ratios=(2, 1))
+    colours = {name: f"C{index}" for index, name in enumerate(data["settings"]["criterion"])}
+    for run, curves in data["residuals"].items():
+        style = "-" if run == "controlled" else "--"
+        for name, values in curves.items():
+            points = [(i + 1, v) for i, v in enumerate(values) if v is not None and v > 0]
+            if points:
+                top.semilogy(*zip(*points, strict=True), style, lw=1, color=colours.get(name),
+                             label=f"{name} ({run})")
+    for threshold in data["settings"]["criterion"].values():
+        top.axhline(threshold, color="grey", lw=0.5, ls=":")
+    top.set_ylabel("initial residual")
+    top.legend(fontsize=7, ncol=2)
+    top.set_title(f"jaxsimrl solve: {Path(data['case']).name}")
+    for index in range(max((len(step["action"]) for step in data["steps"]), default=0)):
+        xs, ys = [], []
+        for step in data["steps"]:
+            xs += [step["from_iteration"], step.get("to_iteration", step["from_iteration"])]
+            ys += [step["action"][index]] * 2
+        label = ("alpha_u", "alpha_p", "alpha_t")[index] if index < 3 else str(index)
+        bottom.plot(xs, ys, lw=1.2, label=label)
+    for event in data["fallback"]:
+        bottom.axvline(event["at_iteration"], color="red", lw=0.8, ls="--")
+    bottom.set_xlabel("SIMPLE iteration")
+    bottom.set_ylabel("factor")
+    if data["steps"]:
+        bottom.legend(fontsize=7)
+    buffer = io.BytesIO()
+    figure.tight_layout()
+    figure.savefig(buffer, format="png", dpi=90)
+    plt.close(figure)
+    return buffer.getvalue()
+
+
+def _now() -> str:
+    return datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%dT%H:%M:%SZ")

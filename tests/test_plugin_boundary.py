@@ -1,0 +1,120 @@
+"""The core names no application (issue 34): no module of jaxsimrl outside jaxsimrl.apps imports
+foam_bridge or an application, nor holds the string "foam" in its code; an application plugs in through
+jaxsimrl.plugin's contract alone, as the OpenFOAM one does and as a new one would."""
+
+from __future__ import annotations
+
+import ast
+import sys
+import textwrap
+from importlib.metadata import EntryPoint
+from pathlib import Path
+
+import pytest
+
+import foam_bridge
+import jaxsimrl.plugin as plugin
+from foam_bridge.env import FAILURES
+from jaxsimrl.cli.main import build_parser
+from jaxsimrl.policy.spec import env_spec
+
+ROOT = Path(__file__).resolve().parents[1] / "jaxsimrl"
+
+
+def _core_files() -> list[Path]:
+    return [path for path in sorted(ROOT.rglob("*.py")) if path.relative_to(ROOT).parts[0] != "apps"]
+
+
+def _docstrings(tree: ast.AST) -> set[int]:
+    bodies = [node.body for node in ast.walk(tree)
+              if isinstance(node, ast.Module | ast.ClassDef | ast.FunctionDef | ast.AsyncFunctionDef)]
+    return {id(body[0].value) for body in bodies
+            if body and isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant)}
+
+
+def _application_names(path: Path) -> list[str]:
+    """What in ``path``'s code names an application: its imports of one, and its strings with "foam"."""
+    tree = ast.parse(path.read_text(), str(path))
+    docs, found = _docstrings(tree), []
+    for node in ast.walk(tree):
+        names = ([alias.name for alias in node.names] if isinstance(node, ast.Import)
+                 else [node.module or ""] if isinstance(node, ast.ImportFrom) else [])
+        found += [f"imports {name}" for name in names
+                  if name.split(".")[0] == "foam_bridge" or name.startswith(plugin.APPS_PACKAGE + ".")]
+        if isinstance(node, ast.Constant) and isinstance(node.value, str) and id(node) not in docs:
+            found += [f"string {node.value!r}"] if "foam" in node.value.lower() else []
+    return found
+
+
+def test_the_scan_sees_an_import_and_a_branch() -> None:
+    """The scan itself can fail: a file that imports foam_bridge and branches on "foam" is caught."""
+    assert len(_core_files()) > 50
+    assert _application_names(ROOT / "apps" / "foam" / "spec.py")  # the application's own imports
+    source = ROOT.parent / "tests" / "_branching_core_example.py"
+    source.write_text('import foam_bridge.env\nif env == "foam":\n    pass\n')
+    try:
+        assert _application_names(source) == ["imports foam_bridge.env", "string 'foam'"]
+    finally:
+        source.unlink()
+
+
+def test_no_core_module_names_an_application() -> None:
+    named = {str(path.relative_to(ROOT.parent)): found for path in _core_files()
+             if (found := _application_names(path))}
+    assert named == {}
+
+
+def test_jaxsimrl_uses_foam_bridge_s_public_face_alone() -> None:
+    """Every import of foam_bridge in jaxsimrl (its OpenFOAM application) is ``import foam_bridge`` or
+    ``from foam_bridge import NAME`` with NAME in its ``__all__``: never a module behind the face."""
+    deep, unknown = [], []
+    for path in sorted(ROOT.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            where = f"{path.relative_to(ROOT.parent)}:{getattr(node, 'lineno', 0)}"
+            if isinstance(node, ast.Import):
+                deep += [where for alias in node.names if alias.name.startswith("foam_bridge.")]
+            elif isinstance(node, ast.ImportFrom) and (node.module or "").startswith("foam_bridge."):
+                deep.append(where)
+            elif isinstance(node, ast.ImportFrom) and node.module == "foam_bridge":
+                unknown += [f"{where} {a.name}" for a in node.names if a.name not in foam_bridge.__all__]
+    assert deep == [] and unknown == []
+
+
+def test_the_foam_application_plugs_in_through_the_contract() -> None:
+    (app,) = [app for app in plugin.applications() if app.env == "foam"]
+    assert app.failed_outcomes == frozenset(FAILURES)  # spelled out there, so that finding it stays light
+    commands = build_parser()._subparsers._group_actions[0].choices
+    expected = {"train-lorenz", "plot", "train-foam", "eval-foam", "grid-foam", "solve", "family"}
+    assert expected <= set(commands)
+    assert plugin.load(app.env_spec).__module__ == "jaxsimrl.apps.foam.spec"
+
+
+def test_a_new_application_plugs_in_through_an_entry_point(tmp_path: Path, monkeypatch) -> None:
+    """A toy application in another distribution: its command and its runs' env, no edit of the core."""
+    (tmp_path / "toyapp.py").write_text(textwrap.dedent('''
+        from jaxsimrl.plugin import App
+        from jaxsimrl.policy.spec import lorenz_spec
+
+        APP = App(env="toy", commands=("toyapp",), env_spec="toyapp:spec")
+
+
+        def spec(record):
+            return lorenz_spec(record)
+
+
+        def register(subparsers):
+            subparsers.add_parser("toy-run").set_defaults(func=lambda args: 7)
+    '''))
+    monkeypatch.syspath_prepend(str(tmp_path))
+    point = EntryPoint(name="toy", value="toyapp", group=plugin.ENTRY_POINT_GROUP)
+    monkeypatch.setattr(plugin, "entry_points", lambda group: [point] if group == point.group else [])
+    plugin.applications.cache_clear()
+    try:
+        assert plugin.application("toy").env_spec == "toyapp:spec"
+        assert build_parser().parse_args(["toy-run"]).func(None) == 7
+        assert env_spec({"env": "toy"}).obs_names[0] == "x"  # the Lorenz spec it hands on
+        with pytest.raises(ValueError, match="known: foam, lorenz, toy"):
+            env_spec({"env": "cfd"})
+    finally:
+        plugin.applications.cache_clear()
+        sys.modules.pop("toyapp", None)
