@@ -87,7 +87,6 @@ def decompose(case: Path, openfoam: OpenFOAM, ranks: int) -> None:
     """Decompose ``case`` into ``ranks`` subdomains (``decomposePar -force``): its own decomposeParDict
     when that one asks for ``ranks`` subdomains, else one that does (:func:`_write_decompose_dict`).
     decomposePar reads fvSolution: call it before the FIFO is #included. CaseError on failure."""
-
     _write_decompose_dict(case, ranks)
     run_application(openfoam, "decomposePar", case, "-force")
 
@@ -109,7 +108,6 @@ def _write_decompose_dict(case: Path, ranks: int) -> None:
 def reconstruct(case: Path, openfoam: OpenFOAM, time_name: str | None = None) -> None:
     """``reconstructPar`` of one time (default the latest) into ``case``'s top level. It reads fvSolution:
     ``case`` must not #include a FIFO. CaseError on failure."""
-
     which = ["-latestTime"] if time_name is None else ["-time", time_name]
     run_application(openfoam, "reconstructPar", case, *which)
 

@@ -115,3 +115,16 @@ def test_tensorboard_has_every_metric_at_its_env_steps(run):
     returns = scalars.get("train/mean_episode_return", [])
     assert [step for step, _ in returns] == [row["env_steps"] for row in rows if row["episodes"] > 0]
 
+
+
+def test_failed_episodes_are_those_the_run_s_application_calls_failed(tmp_path):
+    """The iterations panel's failures: the outcomes the App of config.json's env names (none otherwise)."""
+    from foam_bridge import FAILURES
+    from jaxsimrl.cli.plot import _failed_outcomes
+
+    (tmp_path / "config.json").write_text('{"env": "foam"}')
+    assert _failed_outcomes(tmp_path) == frozenset(FAILURES)
+    (tmp_path / "config.json").write_text('{"env": "lorenz"}')
+    assert _failed_outcomes(tmp_path) == frozenset()  # the core's own env: no application
+    (tmp_path / "config.json").write_text("not json")
+    assert _failed_outcomes(tmp_path) == frozenset()

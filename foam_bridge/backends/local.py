@@ -51,7 +51,6 @@ def _preflight(cfg: Any) -> None:
 
     Only for the local backend: Ray nodes may have OpenFOAM and the case where the driver has not.
     """
-
     openfoam = find_openfoam(cfg.openfoam_path)
     if cfg.case_dir is not None:
         with tempfile.TemporaryDirectory(prefix="foam_bridge_check_") as scratch:

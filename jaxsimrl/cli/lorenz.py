@@ -178,7 +178,6 @@ def _sweep_agents(values: dict[str, Any], flags: set[str], items: list[tuple[str
     field overrides --config's value but may not be a flag too (``flags``)."""
     import itertools
 
-
     names = [name for name, _ in items]
     if len(set(names)) < len(names) or set(names) & flags:
         twice = next(name for name in names if names.count(name) > 1 or name in flags)
@@ -229,7 +228,6 @@ def _resume_plan(args: argparse.Namespace) -> TrainPlan:
 
 def sweep_item(text: str) -> tuple[str, tuple[float, ...]]:
     """argparse type of one --sweep item: NAME=V1,V2,... with NAME a sweepable PPOConfig field."""
-
     name, _, listed = text.partition("=")
     if name not in SWEEPABLE or not listed:
         raise argparse.ArgumentTypeError(f"expected NAME=V1,V2 with NAME one of {', '.join(SWEEPABLE)}, got "

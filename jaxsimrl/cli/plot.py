@@ -14,6 +14,7 @@ from pathlib import Path
 from jaxsimrl.cli.errors import UsageError
 from jaxsimrl.evaluation.curves import plot_training_curves, read_episode_iterations, read_rows
 from jaxsimrl.plugin import application
+from jaxsimrl.runs.run_dir import RunDir, read_json
 
 PLOT_FILE = "training_curves.png"
 EPISODES_FILE = "episodes.csv"
@@ -35,7 +36,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run_plot(args: argparse.Namespace) -> int:
     """Entry point of ``jaxsimrl plot``."""
-
     run = Path(args.run_dir)
     out = Path(args.out) if args.out else run / PLOT_FILE
     if out.suffix.lower() != ".png":
@@ -56,12 +56,9 @@ def run_plot(args: argparse.Namespace) -> int:
 def _failed_outcomes(run: Path) -> frozenset[str]:
     """The failed episode outcomes of the application whose env the run's config.json names (none if
     no application's, or no readable config)."""
-    import json
-
-
     try:
-        env = json.loads((run / "config.json").read_text()).get("env")
-    except (OSError, ValueError, AttributeError):
+        record = read_json(RunDir(run).config)
+    except ValueError:
         return frozenset()
-    app = application(env)
+    app = application(record.get("env") if isinstance(record, dict) else None)
     return app.failed_outcomes if app is not None else frozenset()

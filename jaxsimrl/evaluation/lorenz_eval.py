@@ -55,7 +55,6 @@ def initial_states(env: Lorenz, params: LorenzParams, key: jax.Array, episodes: 
 def rollout(env: Lorenz, params: LorenzParams, act: ActFn, carry: Any, start: tuple[jax.Array, Any],
             key: jax.Array) -> Rollout:
     """Run every episode of ``start`` for ``params.horizon`` steps under ``act`` (jitted)."""
-
     def run(carry: Any, start: tuple[jax.Array, Any], key: jax.Array) -> tuple[jax.Array, ...]:
         xyz, speed, reward = scan_episodes(env, params, act, carry, start, key, params.horizon,
                                            lambda out: (out.state.xyz, out.info["speed"], out.reward))
@@ -184,7 +183,6 @@ def aggregate_agents(reports: list[dict[str, Any]]) -> dict[str, Any]:
     stratified-bootstrap intervals, :func:`jaxsimrl.evaluation.aggregate.interval_estimates`),
     ``agents`` (each agent's own entries) and ``plotted_agent`` (the median agent by mean return, whose
     trajectory is plotted)."""
-
     means = [report["mean_return"] for report in reports]
     return {**{key: reports[0][key] for key in _SHARED}, "num_agents": len(reports),
             "mean_return": float(np.mean(means)),

@@ -37,7 +37,6 @@ def user_case_config(cfg: FoamEnvConfig, explicit: Iterable[str],
     """``cfg`` of a user's case with the case's own convergence criterion and action box, for each of
     them not in ``explicit`` (the fields the user set); one-line CaseError if the case cannot run.
     ``checked``: the case already built and checked (foam_bridge.user_case.case_defaults)."""
-
     given = set(explicit)
     if given & {"action_low", "action_high"}:  # the box is set as a whole
         given |= {"action_low", "action_high"}

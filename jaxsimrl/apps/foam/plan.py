@@ -187,7 +187,6 @@ def _family(args: argparse.Namespace, extra: dict[str, Any]) -> dict[str, Any]:
 
 def _foam_template(args: argparse.Namespace, extra: dict[str, Any]) -> Any:
     """A family's shared settings: the defaults, --config's "foam" section, the observation flags."""
-
     values = {**FoamEnvConfig().to_json(), **extra, "work_dir": None}
     values.update({name: value for name, value in _shared_flags(args).items() if value is not None})
     return FoamEnvConfig.from_json(values)
@@ -211,7 +210,6 @@ def _family_setup(family: dict[str, Any]) -> dict[str, Any]:
 def _pool(ppo: Any, pool: int | None) -> int:
     """The pool size: at most one worker per env (all async_envs of an asynchronous batch); by default
     one per env of the learner's batch (num_envs), up to the CPU count."""
-
     if pool is None:
         return validate_pool(ppo.num_envs)
     return validate_pool(ppo.async_envs or ppo.num_envs, pool)
@@ -234,7 +232,6 @@ def _check_ray_address(backend: str, address: str | None, run: Path | None = Non
 def _check_init_action(ppo: Any, foam: Any) -> None:
     """ValueError unless ``ppo.init_action`` (if set) has one factor per action, each in the env's box."""
     import numpy as np
-
 
     action = ppo.init_action
     if action is None:
@@ -299,7 +296,6 @@ def _starting_policy(run_dir: str, ppo: Any, foam: Any, checkpoint: int | None =
 
 def _foam_config(args: argparse.Namespace, extra: dict[str, Any]) -> Any:
     """The FoamEnvConfig: the paper's built-in case, then --config's "foam" section, then flags."""
-
     if extra.get("work_dir") is not None:
         raise UsageError('--config: "foam": work_dir is not used by train-foam: every worker builds its '
                          "cases in a temporary directory of its own (set TMPDIR to move them)")
@@ -333,7 +329,6 @@ def _step_height(values: list[float] | None) -> float | list[float] | None:
 def _user_case(cfg: Any, args: argparse.Namespace, extra: dict[str, Any]) -> Any:
     """A user's case: built-in-geometry settings refused; the case's own convergence criterion and action
     box where --config's "foam" section does not set them (jaxsimrl.apps.foam.config.user_case_config)."""
-
     flags = [f"--{name.replace('_', '-')}" for name in BUILTIN_ONLY if getattr(args, name) is not None]
     given = flags or [f'--config "foam": {name}' for name in builtin_only_set(extra)]
     if given:

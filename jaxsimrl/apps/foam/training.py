@@ -187,7 +187,6 @@ def _start_over(run: Any, episodes: Any) -> None:
     """A resumed run without a checkpoint (killed before its first one was saved) starts over from its
     config.json: the rows it wrote for updates that no checkpoint kept are truncated, so none is
     written twice."""
-
     _say(f"{run.path} has no checkpoint (it stopped before its first update was saved): starting it over "
          f"from its config.json")
     MetricsLog(run).write()

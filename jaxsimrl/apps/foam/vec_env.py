@@ -20,7 +20,6 @@ def foam_vec_env(cfg: Any, num_envs: int, pool: int, seed: int, backend: str = "
                  on_episode: EpisodeHook | None = None, make_env: Any = None) -> HostVecEnv:
     """``num_envs`` cases of ``cfg`` on ``pool`` workers, as a VecEnv (close it with ``.batch.close()``);
     ``make_env``: what each worker builds instead of a FoamCaseEnv (tests: foam_bridge.standin)."""
-
     batch = BatchedFoamEnv(cfg, num_envs=num_envs, backend=backend, pool=pool, ray_address=ray_address,
                            work_dir=work_dir, seed=seed, make_env=make_env)
     return HostVecEnv(batch, on_episode)

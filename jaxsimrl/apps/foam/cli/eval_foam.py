@@ -24,7 +24,6 @@ from jaxsimrl.cli.progress import RunProgress
 
 def register(subparsers: Any) -> None:
     """Add the ``eval-foam`` subcommand."""
-
     parser = subparsers.add_parser(
         "eval-foam", help="evaluate a train-foam policy against constant, default and random factors",
         description="The paper's test protocol on RUN_DIR's last checkpoint: inlet velocities 25, 50, "
@@ -93,7 +92,6 @@ def _check_openfoam() -> None:
 
 def run_eval_foam(args: argparse.Namespace) -> int:
     """Run the evaluation; print progress and the table of results."""
-
     spec = EvalSpec(run_dir=Path(args.run_dir), velocities=tuple(args.velocities),
                     step_heights=None if args.step_height is None else tuple(args.step_height),
                     mesh_scale=args.mesh_scale, samples=args.samples, pool=args.pool, seed=args.seed,

@@ -47,7 +47,6 @@ def register(subparsers: Any) -> None:
 
 def ranges_of(args: argparse.Namespace) -> dict[str, tuple[float, float]]:
     """The ranges given on the command line, checked: LO <= HI, both valid for the variation."""
-
     ranges = {name: tuple(getattr(args, name)) for name, _ in RANGES if getattr(args, name) is not None}
     for name, (low, high) in ranges.items():
         if not low <= high:
@@ -61,7 +60,6 @@ def ranges_of(args: argparse.Namespace) -> dict[str, tuple[float, float]]:
 
 def run_family(args: argparse.Namespace) -> int:
     """Build the family of every base, one line per case built."""
-
     variations = sample_variations(ranges_of(args), args.variants, args.seed)
     total = args.variants * len(args.bases)
     built = 0

@@ -67,13 +67,11 @@ def relaxation_factor(text: str) -> float:
 
 def k_omega_factor(text: str) -> float | str:
     """argparse type: a relaxation factor in (0, 1] or ``alpha_u`` (k and omega follow alpha_u)."""
-
     return FOLLOW_ALPHA_U if text == FOLLOW_ALPHA_U else relaxation_factor(text)
 
 
 def k_omega_setting(text: str) -> float | str:
     """argparse type of train-foam's --relax-k-omega: a factor, ``alpha_u`` or ``action`` (a third action)."""
-
     return K_OMEGA_ACTION if text == K_OMEGA_ACTION else k_omega_factor(text)
 
 
@@ -96,7 +94,6 @@ def add_confirm_argument(parser: argparse.ArgumentParser) -> None:
 
 def register(subparsers: Any) -> None:
     """Add the ``grid-foam`` subcommand."""
-
     parser = subparsers.add_parser(
         "grid-foam",
         help="iterations to convergence of simpleFoam for every constant (alpha_u, alpha_p) on a grid",
@@ -188,7 +185,6 @@ def run_grid_foam(args: argparse.Namespace) -> int:
     """Run the grid, write grid.csv and the heatmaps (and family_best.json over several conditions),
     print the best cell. grid.csv is rewritten (atomically) after every finished cell, so a grid that is
     interrupted or killed keeps the runs it finished."""
-
     cfg = _config(args)
     out = _check_out_dir(args.out)
     _check_openfoam()
@@ -224,7 +220,6 @@ def run_grid_foam(args: argparse.Namespace) -> int:
 def _plot_conditions(cells: list[Any], cfg: Any, args: argparse.Namespace, out: Path) -> list[str]:
     """The heatmaps: grid.png (grid_alpha_t_<A>.png) for one condition, else the same per condition
     with the stem grid_<geometry>_V<v>; returns the file names."""
-
     factor = cfg.k_omega_relaxation
     k_omega = ("" if args.alpha_t else "k/omega follow alpha_u, " if isinstance(factor, str)
                else f"k/omega {factor:g}, ")
@@ -253,7 +248,6 @@ def _best_line(cells: list[Any]) -> str:
 
 def _write_family_best(cells: list[Any], args: argparse.Namespace, out: Path) -> list[str]:
     """OUT/family_best.json (atomically); returns the summary line and the file's line."""
-
     best = family_best(cells, args.max_iterations)
     atomic_write_json(out / FAMILY_BEST_JSON, family_best_json(best, cells, args.max_iterations,
                                                                "--max-iterations of grid-foam"))

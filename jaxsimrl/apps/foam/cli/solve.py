@@ -26,7 +26,6 @@ from jaxsimrl.cli.errors import fail, positive_float, positive_int
 
 def register(subparsers: Any) -> None:
     """Add the ``solve`` subcommand."""
-
     parser = subparsers.add_parser(
         "solve", help="converge an OpenFOAM simpleFoam case with a trained controller",
         description="Copy CASE to --out and run it to convergence with a controller setting the relaxation "
@@ -84,7 +83,6 @@ def register(subparsers: Any) -> None:
 
 def residual_spec(text: str) -> Any:
     """argparse type of --residual (jaxsimrl.apps.foam.solve.criterion.parse_residual)."""
-
     try:
         return parse_residual(text)
     except ValueError as err:
@@ -130,7 +128,6 @@ def solve_options(args: argparse.Namespace) -> dict[str, Any]:
 
 def run_solve(args: argparse.Namespace) -> int:
     """Run solve_case and print its summary (a campaign: jaxsimrl.apps.foam.cli.solve_campaign)."""
-
     if args.policy is not None and args.controller != "learned":
         fail(f"--policy is a learned controller; --controller {args.controller} needs no policy")
     if args.keep_decomposed and (args.ranks or 1) < 2:

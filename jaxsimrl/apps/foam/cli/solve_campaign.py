@@ -26,7 +26,6 @@ DEFAULT_OUT = "campaign"
 
 def add_campaign_arguments(parser: argparse.ArgumentParser) -> None:
     """--pool, --backend, --ray-address and --resume on ``solve``'s parser."""
-
     group = parser.add_argument_group(
         "campaigns", "several CASEs, or a directory holding cases, or any of these flags: each case is "
         "solved into OUT/NAME.solved on a pool of workers; OUT/campaign.csv and OUT/campaign.png sum "
@@ -46,7 +45,6 @@ def is_campaign(args: argparse.Namespace) -> bool:
     """Whether the command line asks for a campaign rather than one solve: several CASEs, a campaign flag,
     or one directory that is no case but holds some. Anything else is today's single solve, its errors
     included (a missing or broken CASE)."""
-
     if len(args.case) > 1 or args.resume or any(flag is not None for flag in
                                                  (args.pool, args.backend, args.ray_address)):
         return True
@@ -57,7 +55,6 @@ def is_campaign(args: argparse.Namespace) -> bool:
 def run_campaign_command(args: argparse.Namespace, options: dict[str, Any]) -> int:
     """Plan, check and run the campaign; print its table's path. Exit 0 when every case converged, 1
     otherwise (a case not converged or failed, or the pool lost), 2 for bad input."""
-
     backend = args.backend or "local"
     if args.ray_address is not None and backend != "ray":
         fail("--ray-address needs --backend ray")

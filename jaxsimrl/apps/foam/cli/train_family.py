@@ -67,7 +67,6 @@ def family_configs(cases: Sequence[Path], template: FoamEnvConfig,
                    say: Callable[[str], None]) -> dict[str, FoamEnvConfig]:
     """{case name: its config}: ``template``'s observation switches and interval, the shared settings
     above, and each case's own criterion, box, algorithm, budget and reward scale (its own run measured)."""
-
     openfoam, configs = find_openfoam(template.openfoam_path), {}
     names = _names(cases)
     with tempfile.TemporaryDirectory(prefix="jaxsimrl_family_") as scratch:

@@ -44,7 +44,6 @@ from jaxsimrl.runs.signals import exit_code, stop_word
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add train-foam to the ``jaxsimrl`` dispatcher."""
-
     p = subparsers.add_parser(
         "train-foam", help="train PPO to set simpleFoam's relaxation factors (real OpenFOAM cases)",
         description="Train a PPO agent that sets (alpha_u, alpha_p) every 100 SIMPLE iterations of real "

@@ -56,7 +56,6 @@ def as_action(cfg: FoamEnvConfig, factors: Sequence[float]) -> tuple[float, ...]
 
 def read_baseline_grid(path: str | Path) -> list[Any]:
     """The cells of a grid-foam grid.csv; one-line ValueError for a missing or bad file."""
-
     try:
         cells = read_grid_csv(path)
     except OSError as err:
@@ -71,7 +70,6 @@ def baseline_from_csv(path: str | Path, cells: Sequence[Any] | None = None) -> B
     """The best constant of a grid-foam grid.csv (``cells``: already read from it): its best converged
     cell, or over several conditions the cell best for the family (jaxsimrl.apps.foam.evaluation.family, each
     failure at the grid's cap); one-line ValueError for a missing or bad file or no converged cell."""
-
     cells = read_baseline_grid(path) if cells is None else cells
     family = None
     if len(conditions(cells)) > 1:
@@ -98,7 +96,6 @@ def baseline_from_csv(path: str | Path, cells: Sequence[Any] | None = None) -> B
 def baseline_from_grid(spec: EvalSpec, cfg: FoamEnvConfig, velocity: float, geometry: str,
                        say: Callable[[str], None]) -> Baseline:
     """Run the small constant grid at ``velocity`` on ``geometry``; writes it to the output directory."""
-
     def on_cell(cell: Any) -> None:
         say(f"grid {factors_text(cell.factors)}: {cell.outcome} @ {cell.iterations} it")
 

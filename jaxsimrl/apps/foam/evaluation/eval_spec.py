@@ -180,7 +180,6 @@ def eval_config(train: FoamEnvConfig, spec: EvalSpec, step_height: float | None,
     confirm_alpha_u, if it has one), this geometry and the spec's mesh; its action box widened to hold
     the constant factors (they must not be clipped; learned and random actions lie in the training box
     anyway)."""
-
     cfg = dataclasses.replace(train, mesh_scale=spec.mesh_scale, convergence=dict(TEST_CONVERGENCE),
                               work_dir=None, keep_cases=False)
     if spec.confirm_alpha_u is not None:

@@ -46,7 +46,6 @@ class CachedReference:
 def reference_keys(cfg: Any, velocities: Sequence[float], factors: tuple[float, float]) -> dict[float, str]:
     """The hex digest naming the reference of ``cfg`` (a FoamEnvConfig) and ``factors`` at each of
     ``velocities``. The case files and foam_bridge's source are read once for all of them."""
-
     config = {k: v for k, v in foam_config_to_json(cfg).items() if k not in _NOT_IN_KEY}
     openfoam = find_openfoam(cfg.openfoam_path)
     shared = hashlib.sha256(json.dumps({"config": config, "factors": [float(f) for f in factors],
@@ -89,7 +88,6 @@ class ReferenceCache:
 
     def store(self, key: str, entry: CachedReference, about: dict[str, Any]) -> None:
         """Store ``entry`` (``about``: what it is, for a person reading the JSON)."""
-
         self.directory.mkdir(parents=True, exist_ok=True)
         buffer = io.BytesIO()
         np.savez(buffer, U=entry.final_u)

@@ -66,7 +66,6 @@ class References:
     def _store(self, key: str | None, geometry: str, result: EpisodeResult, residuals: dict[str, float]
                ) -> None:
         """Keep a reference that ran its iterations in the cache (not one that failed on the way)."""
-
         if key is None or result.outcome != "truncated" or result.iterations != self.iterations \
                 or result.final_u is None:
             return
@@ -76,7 +75,6 @@ class References:
 
     def measure(self, result: EpisodeResult) -> EpisodeResult:
         """Record the run's U error (None: no reference, or no final field); drop the field itself."""
-
         reference = self.runs.get((result.job.geometry, result.job.velocity))
         self.errors[result.job.uid] = relative_l2(result.final_u, None if reference is None
                                                   else reference.final_u)

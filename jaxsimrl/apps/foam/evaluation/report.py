@@ -88,7 +88,6 @@ def build_report(spec: EvalSpec, run: Any, baseline: Baseline | None, shapes: di
     """eval.json: the protocol, the baseline, and per controller -> geometry -> velocity the runs
     (``rows``, as run_row makes them) and their statistics; the oracle's cells add its choice and cost
     (``oracle``, from foam_oracle.choose)."""
-
     chosen = [c for c in CONTROLLERS if c in spec.controllers]
     table: dict[str, Any] = {c: {g: {} for g in shapes} for c in chosen}
     for controller in chosen:

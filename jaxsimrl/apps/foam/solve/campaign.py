@@ -252,7 +252,6 @@ def _write(out: Path, jobs: Sequence[CaseJob], rows: Mapping[int, dict[str, Any]
 def _mark_stopped(jobs: Sequence[CaseJob], stopped: Any) -> None:
     """The cases the campaign stopped mid-solve say so in their solve.json (their worker was killed
     before it could), unless the solve finished just before; --resume solves them again either way."""
-
     for index in stopped:
         job = jobs[index]
         if job.out.is_dir() and finished(job) is None:

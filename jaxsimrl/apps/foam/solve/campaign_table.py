@@ -77,7 +77,6 @@ def write_table(out: Path, rows: Sequence[Mapping[str, Any]], compare: bool) -> 
 def write_plot(out: Path, rows: Sequence[Mapping[str, Any]], compare: bool) -> None:
     """OUT/campaign.png: iterations and wall seconds per case, the controller's bar beside the case's own
     settings' where --compare; a failed case has no bar and says so."""
-
     preload_plotting()  # matplotlib with the Agg backend: no display needed
     import matplotlib.pyplot as plt
 

@@ -70,7 +70,6 @@ def as_controller(policy: Any) -> Any:
 def policy_env_config(path: str | Path | None) -> Any:
     """The FoamEnvConfig a controller trained with, from its config.json alone (no JAX); one-line
     ValueError if it has none."""
-
     record = RunDir.existing(path if path is not None else DEFAULT_CONTROLLER).read_config()
     if record.get("env") != "foam" or not isinstance(record.get("foam"), dict):
         raise ValueError(f"{path} is not a train-foam run (its config.json has env {record.get('env')!r}); "

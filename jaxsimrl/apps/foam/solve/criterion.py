@@ -98,13 +98,11 @@ def describe(criterion: Mapping[str, float], source: str) -> str:
 
 def stop_only(solved: Sequence[str]) -> dict[str, float]:
     """The criterion of a case that only its runTimeControl ends: no field ever meets it."""
-
     return {name: NEVER_CONVERGED for name in solved}
 
 
 def source_of(convergence: Mapping[str, float], residual: Residual | str | None) -> str:
     """Where a solve's criterion came from: FROM_FLAG, FROM_STOP or FROM_CASE."""
-
     if residual is not None:
         return FROM_FLAG
     return FROM_STOP if all(value == NEVER_CONVERGED for value in convergence.values()) else FROM_CASE
@@ -133,7 +131,6 @@ def converged_by(run: Any, rescue: Any, criterion_from: str) -> str | None:
     """What ended the run whose fields ``out`` holds as converged (None if it did not converge): the
     controlled ``run`` (the criterion, ``criterion_from``; or the case's own function object,
     foam_bridge.env.CASE_STOP), or the case's own run ``rescue`` that replaced it."""
-
     if rescue is not None:
         return own_converged_by(rescue, criterion_from)
     if run.outcome != "converged":

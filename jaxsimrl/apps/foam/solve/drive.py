@@ -84,7 +84,6 @@ def drive(cfg: FoamEnvConfig, actor: Callable[[float], Actor], fallback: list[fl
     worker's env (jaxsimrl.apps.foam.solve.settings.CheckedCase: from that check's build); ``on_step(run)``
     after every step but the episode's last (jaxsimrl.apps.foam.solve.live redraws solve.png; the final report
     draws the last, and a drawing of it here would only delay the report by ~0.4 s)."""
-
     run = ControlledRun()
     started = time.monotonic()
     backend = LocalBackend(cfg, 1, 1, Path(cfg.work_dir), checked=True, make_env=make_env)

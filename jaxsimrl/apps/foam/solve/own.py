@@ -60,7 +60,6 @@ def run_own(source: Path, dest: Path, label: str, timeout_s: float, factors: Seq
     ``start_time``: the time directory it starts from (``startFrom latestTime`` with only 0 and that one
     copied), iterations counted from there; ``ranks`` > 1: decomposed, run under mpirun and its latest
     fields reconstructed, as the user would run it."""
-
     openfoam = find_openfoam()
     copy_case(source, dest, start_time=start_time)
     if start_time:

@@ -75,7 +75,6 @@ def start_of(case: Path, from_time: float | None = None) -> tuple[int, str]:
     its latest time directory, as ``startFrom latestTime`` would (a partly converged run goes on from
     there). One-line ValueError for a time it does not have, or one that is not an integer (the bridge
     runs deltaT 1)."""
-
     times = [value for value, path in time_directories(case) if (path / "U").is_file()
              or (path / "U.gz").is_file() or value == 0]
     if from_time is not None and from_time not in times:
@@ -92,7 +91,6 @@ def start_of(case: Path, from_time: float | None = None) -> tuple[int, str]:
 def read_case_settings(case: Path, start_time: int = 0) -> CaseSettings:
     """Read the case's relaxation factors and budget as OpenFOAM expands them (on a scratch copy); the
     budget of a run from ``start_time`` > 0 is the case's endTime minus it."""
-
     openfoam = find_openfoam()
     with tempfile.TemporaryDirectory(prefix="jaxsimrl_solve_read_") as scratch:
         copy = Path(scratch) / "case"
@@ -189,7 +187,6 @@ def solve_config(case: Path, policy_cfg: FoamEnvConfig, work: Path, max_iteratio
     criterion, box and observed fields are applied, and none enters the build (the dry run relaxes with
     the case's own factors, or the box's lower corner, which is the built-in one for a case without own
     factors)."""
-
     copied = {name: getattr(policy_cfg, name) for name in POLICY_FIELDS if hasattr(policy_cfg, name)}
     if getattr(policy_cfg, "relax_k_omega", None) == TURBULENCE_ACTION:
         copied["relax_k_omega"] = TURBULENCE_ACTION
@@ -230,7 +227,6 @@ def inlet_of(case: Path, named: str | None, openfoam: Any) -> str | None:
     """The inlet patch a solve observes: ``named`` (--inlet-patch), which the case must have; else the
     case's patch ``inlet``, or None for a case without one (a cavity, a closed mixer: the rules run it, and
     a controller that observes the inlet's flow does not apply, :func:`not_applicable`)."""
-
     patches = declared_patches(case, openfoam)
     if named is None:
         return DEFAULT_INLET if patches is None or DEFAULT_INLET in patches else None
@@ -244,7 +240,6 @@ def _stopped_by_the_case(cfg: FoamEnvConfig, explicit: list[str], checked: Check
                          ) -> FoamEnvConfig:
     """``cfg`` of a case without residualControl: its runTimeControl's criterion alone
     (jaxsimrl.apps.foam.solve.criterion) and its own box; else a one-line CaseError naming --residual."""
-
     controls = foamdict.expand(find_openfoam(cfg.openfoam_path), checked.directory, "system/controlDict")
     if not stopping_function_objects(controls):
         raise CaseError(f"{where}: SIMPLE has no residualControl (nor a runTimeControl function object that "
