@@ -1,7 +1,7 @@
 """Atomic file writes for run directories and result files: the ``atomicfile`` package's, plus JSON.
 
 A reader sees either the old file or the complete new one, never a partial one (``atomicfile`` is the
-one implementation, shared with foam_bridge, which imports nothing of jaxsimrl).
+one implementation, shared with the solver bridge, which imports nothing of jaxsimrl).
 """
 
 from __future__ import annotations
