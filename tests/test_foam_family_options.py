@@ -13,6 +13,7 @@ from foam_marks import needs_openfoam
 from foam_bridge.config import FoamEnvConfig
 from foam_bridge.env import FoamCaseEnv, action_spec, factors_of, observation_spec, shares_of
 from foam_bridge.family_env import CaseFamilyEnv
+from jaxsimrl.apps.foam.solve.settings import CaseSettings, around_own
 
 SHARED = dict(observe_state=False, observe_algorithm=True, action_share=True, residual_features=2,
               observe_progress=True, observe_action=True)
@@ -44,6 +45,22 @@ def test_a_pivot_puts_the_case_s_own_factors_at_one_half() -> None:
     assert FoamEnvConfig.from_json(cfg.to_json()) == cfg and "action_pivot" not in FoamEnvConfig().to_json()
     with pytest.raises(ValueError, match="action_pivot"):
         FoamEnvConfig(action_low=(0.2, 0.2), action_high=(0.95, 0.95), action_pivot=(0.9, 1.0)).validate()
+
+
+def test_around_own_pivots_plain_simple_at_its_own_and_simplec_at_its_top() -> None:
+    template = FoamEnvConfig(action_low=(0.35, 0.15, 0.35), action_high=(0.875, 0.375, 0.875),
+                             relax_k_omega="action", action_share=True)
+    plain = around_own(template, CaseSettings((0.7, 0.3, 0.7), False, None, "SIMPLE")).validate()
+    assert plain.action_pivot == (0.7, 0.3, 0.7)
+    assert factors_of(plain, [0.5] * 3) == pytest.approx([0.7, 0.3, 0.7])
+    simplec = around_own(template, CaseSettings((0.9, None, 0.9), False, None, "SIMPLEC")).validate()
+    assert simplec.action_high == (0.95, 1.0, 0.95) and simplec.action_pivot == simplec.action_high
+    assert simplec.action_low == (0.9, 0.5, 0.5)  # never below its own alpha_u
+    assert factors_of(simplec, [0.5] * 3) == pytest.approx([0.95, 1.0, 0.95])
+    assert factors_of(simplec, [0.0] * 3) == pytest.approx([0.9, 0.5, 0.5])
+    assert shares_of(simplec, [0.95, 1.0, 0.95]) == pytest.approx([0.5] * 3)
+    high_own = around_own(template, CaseSettings((0.97, 0.3, 0.4), False, None, "SIMPLEC")).validate()
+    assert high_own.action_low == (0.97, 0.3, 0.4) and high_own.action_high == (0.97, 1.0, 0.95)
 
 
 def test_the_options_size_the_observation_and_leave_old_configs_json_alone() -> None:

@@ -7,8 +7,9 @@ foam_bridge.user_case), algorithm. What one controller needs to act on all of th
   observes the algorithm (1 for SIMPLEC), the residuals of one field per role (velocity, the first
   turbulence field, pressure: jaxsimrl.apps.foam.solve.fields), progress and the factors in force;
 - the action is a share of each case's box (``action_share``), three factors (U, p, turbulence), with
-  the case's own factors at 0.5 (``action_pivot``; the box widened to hold them): the initial policy's
-  mean is every case's own settings, and "above 0.5" means more aggressive than the user's own in any case;
+  share 0.5 at ``action_pivot`` (jaxsimrl.apps.foam.solve.settings.around_own): a plain-SIMPLE case's own
+  factors, a SIMPLEC case's box top (its alpha_u never below its own), so the initial policy's mean is
+  where the residual rule starts each algorithm;
 - the reward is scaled per case by 100 / the iterations of the case's own settings, so that a case ten
   times longer than another does not outweigh it tenfold; and each case's budget is
   ``BUDGET_FACTOR`` x those iterations (a bad episode costs a bounded multiple of a good one), or the

@@ -267,10 +267,30 @@ def check_factor(settings: CaseSettings) -> float:
     return own if own is not None and 0 < own < 1 else UNRELAXED_CHECK
 
 
+#: A SIMPLEC case's box for a controller acting around its own factors: (alpha_u, alpha_p, turbulence) at
+#: most ``SIMPLEC_TOP`` (or the case's own where higher) ...
+SIMPLEC_TOP = (0.95, 1.0, 0.95)
+#: ... and at least the case's own alpha_u (below it SIMPLEC with an unrelaxed pressure is unstable, not
+#: cautious: T3A-0 at its own 0.9 converges in 278 iterations, at 0.85 diverges at iteration 351, at 0.8 at
+#: 49; experiments/controller/family-v5-setup/t3a_floor.json) and ``SIMPLEC_FLOOR`` for p and turbulence.
+SIMPLEC_FLOOR = 0.5
+
+
 def around_own(cfg: FoamEnvConfig, settings: CaseSettings) -> FoamEnvConfig:
-    """The case's box widened to hold its own factors (a SIMPLEC case leaves p unrelaxed, 1.0, above the
-    built-in box's 0.95), and its own factors as the pivot: share 0.5 is the case's own settings."""
+    """The box a controller acting in shares of a case's own neighbourhood gets (``action_pivot`` is the
+    factors at share 0.5). Plain SIMPLE: the case's box widened to hold its own factors, which are the
+    pivot (its top corner can blow a run up: the residual rule starts there at its own factors too).
+    SIMPLEC: from the case's own alpha_u (``SIMPLEC_FLOOR`` for the others) to ``SIMPLEC_TOP``, which is
+    the pivot: SIMPLEC is made for factors near 1 and the top converged every SIMPLEC training variant
+    faster than its own factors (T3A-0 199 iterations against 278, pitzDaily-0 198 against 292; 0.98
+    converged neither within 3x its own: experiments/controller/family-v6-setup/simplec_top.json), so the
+    initial policy starts there and learns where to leave it (downwards only)."""
     own = [1.0 if value is None else value for value in settings.factors][:cfg.action_size]
+    if settings.variant == "SIMPLEC":
+        high = tuple(max(top, factor) for top, factor in zip(SIMPLEC_TOP, own, strict=False))
+        floors = (own[0], *(SIMPLEC_FLOOR for _ in own[1:]))
+        low = tuple(min(floor, factor, top) for floor, factor, top in zip(floors, own, high, strict=True))
+        return dataclasses.replace(cfg, action_low=low, action_high=high, action_pivot=high)
     high = tuple(max(hi, factor) for hi, factor in zip(cfg.action_high, own, strict=True))
     pivot = tuple(min(max(factor, lo), hi) for factor, lo, hi in zip(own, cfg.action_low, high, strict=True))
     return dataclasses.replace(cfg, action_high=high, action_pivot=pivot)
