@@ -27,7 +27,7 @@ import re
 import shutil
 from pathlib import Path
 
-from foam_bridge.export import latest_time
+from foam_bridge._export import latest_time
 from jaxsimrl.apps.foam.solve import solve_case
 from jaxsimrl.apps.foam.solve.agreement import field_difference, function_object_differences
 from jaxsimrl.apps.foam.solve.own import OwnProcess

@@ -9,7 +9,7 @@ RESULTS_train_foam.md) for ``--warmup-s`` and then a ``--window-s`` window. Util
 over ``pool x window``, three ways:
 
 - ``steps``: the worker seconds of every step whose result came back in the window (each env is wrapped
-  in foam_bridge.timing.TimedSteps); the measure for both batches and both solvers.
+  in foam_bridge._timing.TimedSteps); the measure for both batches and both solvers.
 - ``records``: wall_time_s - solver_idle_s of the episodes that ended in the window (what train-foam's
   pool_utilisation counts; counting episodes by their end, in a steady state, neither loses nor
   double-counts the ones that straddle the window's edges). It also counts the time an episode's first
@@ -24,7 +24,7 @@ numbers against (a shortfall is this machine's latency, not the batch).
 Results are merged into ``--out`` (JSON, keyed by mode, solver, profile and pool), written atomically.
 
 Lock-step: ``num_envs = pool`` (as train-foam runs). Async: ``num_envs = --envs-per-worker x pool`` and
-``batch_size = pool`` (foam_bridge.async_batch).
+``batch_size = pool`` (foam_bridge._async_batch).
 """
 
 from __future__ import annotations
@@ -47,9 +47,9 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from atomicfile import atomic_write_text  # noqa: E402
-from foam_bridge.config import FoamEnvConfig  # noqa: E402
-from foam_bridge.standin import DETREND, Profile, StandIn  # noqa: E402
-from foam_bridge.timing import TimedSteps  # noqa: E402
+from foam_bridge._config import FoamEnvConfig  # noqa: E402
+from foam_bridge._standin import DETREND, Profile, StandIn  # noqa: E402
+from foam_bridge._timing import TimedSteps  # noqa: E402
 
 PROFILES = {"mesh05": ("experiments/foam/train-mesh05/episodes.csv", 757),  # RESULTS_train_foam's 757
             "full": ("experiments/foam/finetune-full/episodes.csv", None)}
@@ -121,14 +121,14 @@ def _drive_async(batch: Any, until: float, ended: list, fixed: list[float] | Non
 def measure(mode: str, pool: int, cfg: FoamEnvConfig, make_env: Any, warmup_s: float, window_s: float,
             envs_per_worker: int, batch_fraction: float, fixed: list[float] | None = None) -> dict[str, Any]:
     """One configuration's utilisation (see the module docstring)."""
-    from foam_bridge.batched import BatchedFoamEnv
+    from foam_bridge._batched import BatchedFoamEnv
 
     started = time.monotonic()
     if mode == "lockstep":
         batch = BatchedFoamEnv(cfg, num_envs=pool, pool=pool, seed=0, make_env=make_env)
         drive = _drive_lockstep
     else:
-        from foam_bridge.async_batch import AsyncFoamEnv
+        from foam_bridge._async_batch import AsyncFoamEnv
 
         batch = AsyncFoamEnv(cfg, num_envs=envs_per_worker * pool, pool=pool, seed=0, make_env=make_env,
                              batch_size=max(1, round(batch_fraction * pool)))

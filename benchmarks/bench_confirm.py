@@ -20,8 +20,8 @@ import statistics
 import tempfile
 import time
 
-from foam_bridge.config import TEST_CONVERGENCE, FoamEnvConfig
-from foam_bridge.env import FoamCaseEnv
+from foam_bridge._config import TEST_CONVERGENCE, FoamEnvConfig
+from foam_bridge._env import FoamCaseEnv
 
 FACTORS = (0.95, 0.875)
 

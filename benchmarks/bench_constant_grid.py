@@ -4,7 +4,7 @@ turbulence fields at alpha_u, plain ``simpleFoam`` to the case's own residualCon
     .venv/bin/python benchmarks/bench_constant_grid.py airFoil2D --alpha-u 0.7 0.7875 0.875 \
         --alpha-p 0.3 0.3375 0.375 --out benchmarks/results/rules-2026-12-03/grid-airFoil2D
 
-What the box of a plain-SIMPLE case ([own / 2, 1.25 own], foam_bridge.user_case) lets a constant reach,
+What the box of a plain-SIMPLE case ([own / 2, 1.25 own], foam_bridge._user_case) lets a constant reach,
 beside what solve's controllers reach (benchmarks/RESULTS_solve.md). A cell at alpha_u >= the case's own
 needs no convergence check: its solver's own test already normalised at least as strictly as the case's.
 Runs two cells at a time (one simpleFoam each); writes OUT/grid.jsonl (a row per cell) and prints a table.

@@ -5,7 +5,7 @@ criterion), it alternates ``--repeats`` times:
 
 - ``env``: one FoamCaseEnv episode, a pause every ``--interval`` iterations;
 - ``uninterrupted``: one simpleFoam run of the same episode case, start to end, with the same state
-  function objects but no pause (foam_bridge.episode_case.make_uninterrupted);
+  function objects but no pause (foam_bridge._episode_case.make_uninterrupted);
 - ``plain``: the same without any function object (the stock way to run the case).
 
 Reported (medians over repeats, all runs of one repeat measured back to back): wall times, the
@@ -27,11 +27,12 @@ import tempfile
 import time
 from pathlib import Path
 
-from foam_bridge import episode_case, template
-from foam_bridge.config import FOLLOW_ALPHA_U, U_REF, FoamEnvConfig
-from foam_bridge.env import FoamCaseEnv
-from foam_bridge.logparse import LogParser
-from foam_bridge.solver import run_to_end
+from foam_bridge import _episode_case as episode_case
+from foam_bridge import _template as template
+from foam_bridge._config import FOLLOW_ALPHA_U, U_REF, FoamEnvConfig
+from foam_bridge._env import FoamCaseEnv
+from foam_bridge._logparse import LogParser
+from foam_bridge._solver import run_to_end
 
 ACTION = (0.95, 0.95)
 

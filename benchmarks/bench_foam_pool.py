@@ -19,8 +19,8 @@ import time
 
 import numpy as np
 
-from foam_bridge.batched import BatchedFoamEnv
-from foam_bridge.config import FOLLOW_ALPHA_U, MESH_SCALE_USABLE_MIN, FoamEnvConfig
+from foam_bridge._batched import BatchedFoamEnv
+from foam_bridge._config import FOLLOW_ALPHA_U, MESH_SCALE_USABLE_MIN, FoamEnvConfig
 
 
 def measure(cfg: FoamEnvConfig, num_envs: int, pool: int, episodes: int, policy: str, seed: int) -> dict:

@@ -18,7 +18,7 @@ import json
 import tempfile
 from pathlib import Path
 
-from foam_bridge.fields import final_field, relative_l2
+from foam_bridge._fields import final_field, relative_l2
 from jaxsimrl.apps.foam.solve.own import run_own
 
 TUTORIALS = Path("/usr/share/doc/openfoam-examples/examples/incompressible/simpleFoam")

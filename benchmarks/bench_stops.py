@@ -31,8 +31,8 @@ from pathlib import Path
 
 from foamlib import FoamFile
 
-from foam_bridge import template
-from foam_bridge.backends.reaper import processes_under
+from foam_bridge import _template as template
+from foam_bridge._backends.reaper import processes_under
 
 JAXSIMRL = str(Path(sys.executable).with_name("jaxsimrl"))
 SIGNALS = {"Ctrl-C": signal.SIGINT, "SIGTERM": signal.SIGTERM, "kill -9": signal.SIGKILL}

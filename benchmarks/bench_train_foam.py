@@ -30,8 +30,8 @@ from typing import Any
 import jax
 import numpy as np
 
-from foam_bridge.batched import BatchedFoamEnv
-from foam_bridge.config import FoamEnvConfig
+from foam_bridge._batched import BatchedFoamEnv
+from foam_bridge._config import FoamEnvConfig
 from jaxsimrl.agents.ppo import PPOConfig, make_train
 from jaxsimrl.apps.foam.plan import foam_ppo_defaults
 from jaxsimrl.envs.host import HostVecEnv

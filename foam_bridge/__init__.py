@@ -19,7 +19,7 @@ application built on the bridge (jaxsimrl's OpenFOAM application) drives it with
 their requests, the asynchronous batch, the case checks, MPI decomposition and reconstruction, the log
 parser, the episode records and the public module ``foamdict`` (OpenFOAM dictionaries, as foamDictionary
 expands them). jaxsimrl imports nothing else of foam_bridge (tests/test_plugin_boundary.py).
-Modules whose top says "internal" are the machinery behind these names; their contents may change.
+The modules behind these names are private (``_name``, as foamlib's): their contents may change.
 """
 
 from __future__ import annotations
@@ -34,56 +34,56 @@ ENV_ID = "foam_bridge/RelaxationControl-v0"
 if ENV_ID not in registry:
     register(
         id=ENV_ID,
-        entry_point="foam_bridge.gym_envs:RelaxationControlEnv",
-        vector_entry_point="foam_bridge.gym_envs:RelaxationControlVecEnv",
+        entry_point="foam_bridge._gym_envs:RelaxationControlEnv",
+        vector_entry_point="foam_bridge._gym_envs:RelaxationControlVecEnv",
     )
 
 #: The module that defines each public name (imported on first access of one of its names).
 _HOMES: dict[str, tuple[str, ...]] = {
-    "config": (
+    "_config": (
         "ACTION_NAMES", "BUILTIN_INLET_VELOCITY", "BUILTIN_RELAX_K_OMEGA", "FOLLOW_ALPHA_U",
         "K_OMEGA_ACTION", "MESH_SCALE_USABLE_MIN", "NEVER_CONVERGED", "OBSERVATION_BOUND",
         "PAPER_INLET_TURBULENCE", "REWARDS", "SIMPLE_VARIANTS", "STEP_HEIGHT_H", "TEST_CONVERGENCE",
         "TRAIN_CONVERGENCE", "U_REF", "FoamEnvConfig", "failure_reward", "without_convergence_test",
     ),
-    "env": ("CASE_STOP", "FAILURES", "OUTCOMES", "FoamCaseEnv"),
-    "batched": ("BatchedFoamEnv",),
-    "gym_envs": ("RelaxationControlEnv", "RelaxationControlVecEnv"),
-    "backends": ("BACKENDS", "BAD_INPUT_ERRORS", "Reply", "Request", "make_backend", "validate_pool"),
-    "user_case": ("CASE_DEFAULT_FIELDS", "case_defaults"),
-    "grid": (
+    "_env": ("CASE_STOP", "FAILURES", "OUTCOMES", "FoamCaseEnv"),
+    "_batched": ("BatchedFoamEnv",),
+    "_gym_envs": ("RelaxationControlEnv", "RelaxationControlVecEnv"),
+    "_backends": ("BACKENDS", "BAD_INPUT_ERRORS", "Reply", "Request", "make_backend", "validate_pool"),
+    "_user_case": ("CASE_DEFAULT_FIELDS", "case_defaults"),
+    "_grid": (
         "Condition", "GridCell", "best_cell", "grid_config", "plot_grid", "plot_grid_slices",
         "read_grid_csv", "run_grid", "write_grid_csv",
     ),
-    "episodes": (
+    "_episodes": (
         "ConstantFactors", "EpisodeJob", "EpisodeRun", "StatelessController", "StepRecord", "run_episodes",
     ),
-    "export": ("POST_PROCESSING", "export_case", "latest_time"),
-    "family": (
+    "_export": ("POST_PROCESSING", "export_case", "latest_time"),
+    "_family": (
         "VARIATION_NAMES", "FamilyCase", "Variation", "build_family", "read_manifest", "sample_variations",
     ),
-    "openfoam": ("find_openfoam",),
-    "logparse": ("LogParser", "SolverCost", "criterion_distance", "field_residual", "solved_field_names"),
-    "errors": (
+    "_openfoam": ("find_openfoam",),
+    "_logparse": ("LogParser", "SolverCost", "criterion_distance", "field_residual", "solved_field_names"),
+    "_errors": (
         "CaseError", "ClusterError", "NoResidualControl", "OpenFOAMNotFoundError", "PoolLostError",
         "SolverFailure",
     ),
-    "async_batch": ("AsyncFoamEnv",),
-    "records": ("COLUMNS", "EpisodeRecord", "read_rows", "rows_to_csv"),
-    "episode_case": ("CaseInfo",),
-    "family_env": ("FamilyFactory",),
-    "backends.local": ("LocalBackend",),
-    "timing": ("TimedSteps",),
-    "spaces": ("action_spec", "factors_of", "shares_of"),
-    "base_case": ("check_case", "check_case_files", "declared_patches"),
-    "template": ("copy_case", "run_application"),
-    "parallel": (
+    "_async_batch": ("AsyncFoamEnv",),
+    "_records": ("COLUMNS", "EpisodeRecord", "read_rows", "rows_to_csv"),
+    "_episode_case": ("CaseInfo",),
+    "_family_env": ("FamilyFactory",),
+    "_backends.local": ("LocalBackend",),
+    "_timing": ("TimedSteps",),
+    "_spaces": ("action_spec", "factors_of", "shares_of"),
+    "_base_case": ("check_case", "check_case_files", "declared_patches"),
+    "_template": ("copy_case", "run_application"),
+    "_parallel": (
         "decompose", "mpirun_path", "processor_count", "reconstruct", "reconstruct_into",
         "reconstructed_case",
     ),
-    "backends.reaper": ("kill_processes_under",),
-    "fields": ("relative_l2", "time_directories"),
-    "solver": ("run_to_end",),
+    "_backends.reaper": ("kill_processes_under",),
+    "_fields": ("relative_l2", "time_directories"),
+    "_solver": ("run_to_end",),
 }
 _EXPORTS = {name: f"foam_bridge.{module}" for module, names in _HOMES.items() for name in names}
 #: Public modules: ``from foam_bridge import foamdict`` (imported as the package's submodule).
@@ -126,13 +126,13 @@ def __dir__() -> list[str]:
 
 if TYPE_CHECKING:  # what type checkers and editors see; at run time __getattr__ loads these
     from foam_bridge import foamdict
-    from foam_bridge.async_batch import AsyncFoamEnv
-    from foam_bridge.backends import BACKENDS, BAD_INPUT_ERRORS, Reply, Request, make_backend, validate_pool
-    from foam_bridge.backends.local import LocalBackend
-    from foam_bridge.backends.reaper import kill_processes_under
-    from foam_bridge.base_case import check_case, check_case_files, declared_patches
-    from foam_bridge.batched import BatchedFoamEnv
-    from foam_bridge.config import (
+    from foam_bridge._async_batch import AsyncFoamEnv
+    from foam_bridge._backends import BACKENDS, BAD_INPUT_ERRORS, Reply, Request, make_backend, validate_pool
+    from foam_bridge._backends.local import LocalBackend
+    from foam_bridge._backends.reaper import kill_processes_under
+    from foam_bridge._base_case import check_case, check_case_files, declared_patches
+    from foam_bridge._batched import BatchedFoamEnv
+    from foam_bridge._config import (
         ACTION_NAMES,
         BUILTIN_INLET_VELOCITY,
         BUILTIN_RELAX_K_OMEGA,
@@ -152,9 +152,9 @@ if TYPE_CHECKING:  # what type checkers and editors see; at run time __getattr__
         failure_reward,
         without_convergence_test,
     )
-    from foam_bridge.env import CASE_STOP, FAILURES, OUTCOMES, FoamCaseEnv
-    from foam_bridge.episode_case import CaseInfo
-    from foam_bridge.episodes import (
+    from foam_bridge._env import CASE_STOP, FAILURES, OUTCOMES, FoamCaseEnv
+    from foam_bridge._episode_case import CaseInfo
+    from foam_bridge._episodes import (
         ConstantFactors,
         EpisodeJob,
         EpisodeRun,
@@ -162,7 +162,7 @@ if TYPE_CHECKING:  # what type checkers and editors see; at run time __getattr__
         StepRecord,
         run_episodes,
     )
-    from foam_bridge.errors import (
+    from foam_bridge._errors import (
         CaseError,
         ClusterError,
         NoResidualControl,
@@ -170,8 +170,8 @@ if TYPE_CHECKING:  # what type checkers and editors see; at run time __getattr__
         PoolLostError,
         SolverFailure,
     )
-    from foam_bridge.export import POST_PROCESSING, export_case, latest_time
-    from foam_bridge.family import (
+    from foam_bridge._export import POST_PROCESSING, export_case, latest_time
+    from foam_bridge._family import (
         VARIATION_NAMES,
         FamilyCase,
         Variation,
@@ -179,9 +179,9 @@ if TYPE_CHECKING:  # what type checkers and editors see; at run time __getattr__
         read_manifest,
         sample_variations,
     )
-    from foam_bridge.family_env import FamilyFactory
-    from foam_bridge.fields import relative_l2, time_directories
-    from foam_bridge.grid import (
+    from foam_bridge._family_env import FamilyFactory
+    from foam_bridge._fields import relative_l2, time_directories
+    from foam_bridge._grid import (
         Condition,
         GridCell,
         best_cell,
@@ -192,16 +192,16 @@ if TYPE_CHECKING:  # what type checkers and editors see; at run time __getattr__
         run_grid,
         write_grid_csv,
     )
-    from foam_bridge.gym_envs import RelaxationControlEnv, RelaxationControlVecEnv
-    from foam_bridge.logparse import (
+    from foam_bridge._gym_envs import RelaxationControlEnv, RelaxationControlVecEnv
+    from foam_bridge._logparse import (
         LogParser,
         SolverCost,
         criterion_distance,
         field_residual,
         solved_field_names,
     )
-    from foam_bridge.openfoam import find_openfoam
-    from foam_bridge.parallel import (
+    from foam_bridge._openfoam import find_openfoam
+    from foam_bridge._parallel import (
         decompose,
         mpirun_path,
         processor_count,
@@ -209,9 +209,9 @@ if TYPE_CHECKING:  # what type checkers and editors see; at run time __getattr__
         reconstruct_into,
         reconstructed_case,
     )
-    from foam_bridge.records import COLUMNS, EpisodeRecord, read_rows, rows_to_csv
-    from foam_bridge.solver import run_to_end
-    from foam_bridge.spaces import action_spec, factors_of, shares_of
-    from foam_bridge.template import copy_case, run_application
-    from foam_bridge.timing import TimedSteps
-    from foam_bridge.user_case import CASE_DEFAULT_FIELDS, case_defaults
+    from foam_bridge._records import COLUMNS, EpisodeRecord, read_rows, rows_to_csv
+    from foam_bridge._solver import run_to_end
+    from foam_bridge._spaces import action_spec, factors_of, shares_of
+    from foam_bridge._template import copy_case, run_application
+    from foam_bridge._timing import TimedSteps
+    from foam_bridge._user_case import CASE_DEFAULT_FIELDS, case_defaults

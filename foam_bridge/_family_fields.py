@@ -1,10 +1,10 @@
-"""Field and property edits of a case-family variant (foam_bridge.family): the inlet's speed and
+"""Field and property edits of a case-family variant (foam_bridge._family): the inlet's speed and
 direction, the inlet turbulence, the initial velocity, the viscosity.
 
 Internal to foam_bridge (its users import from ``foam_bridge`` itself); names here may change.
 
 Every edit is *appended* to the variant's own copy of the file (OpenFOAM merges a later entry into an
-earlier one of the same name, as in foam_bridge.episode_case), never a re-serialisation: ``#include``,
+earlier one of the same name, as in foam_bridge._episode_case), never a re-serialisation: ``#include``,
 ``$var``, comments and everything not varied stay the base's. An inlet's entry is written complete
 (from OpenFOAM's own expansion) under the patch's exact name, so it also overrides a regular-expression
 entry that matched the patch.
@@ -22,7 +22,7 @@ import numpy as np
 from foamlib import FoamFile
 
 from foam_bridge import foamdict
-from foam_bridge.openfoam import OpenFOAM
+from foam_bridge._openfoam import OpenFOAM
 
 __all__ = ["FIXED_INLETS", "FREESTREAM_INLETS", "MAPPED_INLETS", "TURBULENCE_EXPONENTS", "Flow",
            "apply_flow", "check_flow", "read_flow", "rotate", "scale_viscosity"]
@@ -251,4 +251,4 @@ def scale_viscosity(case: Path, openfoam: OpenFOAM, name: str, factor: float) ->
 
 def _append(path: Path, text: str) -> None:
     with open(path, "a") as out:
-        out.write(f"\n// ----- appended by foam_bridge.family for this variant -----\n{text}\n")
+        out.write(f"\n// ----- appended by foam_bridge._family for this variant -----\n{text}\n")

@@ -1,4 +1,4 @@
-"""The mesh of a case-family variant (foam_bridge.family): block cell counts scaled and blockMesh run,
+"""The mesh of a case-family variant (foam_bridge._family): block cell counts scaled and blockMesh run,
 or a shipped mesh refined by refineMesh.
 
 Internal to foam_bridge (its users import from ``foam_bridge`` itself); names here may change.
@@ -19,8 +19,8 @@ import re
 from pathlib import Path
 
 from foam_bridge import foamdict
-from foam_bridge.openfoam import OpenFOAM
-from foam_bridge.template import run_application
+from foam_bridge._openfoam import OpenFOAM
+from foam_bridge._template import run_application
 
 __all__ = ["check_mesh", "has_block_mesh", "scale_blocks", "scale_mesh"]
 
@@ -59,7 +59,7 @@ def scale_mesh(case: Path, openfoam: OpenFOAM, scale: float) -> None:
         match = re.search(r"^blocks\s+(.+);\s*$", text, re.MULTILINE)
         blocks = scale_blocks(match.group(1) if match else "", scale)
         with open(case / "system" / "blockMeshDict", "a") as out:
-            out.write(f"\n// ----- appended by foam_bridge.family: cell counts x {scale:g} -----\n"
+            out.write(f"\n// ----- appended by foam_bridge._family: cell counts x {scale:g} -----\n"
                       f"blocks {blocks};\n")
         run_application(openfoam, "blockMesh", case)
         return

@@ -7,9 +7,9 @@ A user's case may use anything OpenFOAM's parser understands: ``#include``/``#in
 re-serialises those files (that loses or breaks what it does not understand). To *read* a value it asks
 OpenFOAM's own ``foamDictionary -expand``, which prints the file as the solver will see it (directives
 executed, variables substituted), and parses that plain text with foamlib. To *change* something, the
-bridge appends an ``#include`` of a file it writes itself (see foam_bridge.episode_case).
+bridge appends an ``#include`` of a file it writes itself (see foam_bridge._episode_case).
 
-A file OpenFOAM cannot read is a one-line :class:`foam_bridge.errors.CaseError` naming the file and,
+A file OpenFOAM cannot read is a one-line :class:`foam_bridge._errors.CaseError` naming the file and,
 where the message allows, the entry.
 """
 
@@ -23,8 +23,8 @@ from typing import Any
 
 from foamlib import FoamFile
 
-from foam_bridge.errors import CaseError
-from foam_bridge.openfoam import OpenFOAM
+from foam_bridge._errors import CaseError
+from foam_bridge._openfoam import OpenFOAM
 
 __all__ = ["TIMEOUT_S", "expand", "expanded_text", "fatal_message", "lookup"]
 

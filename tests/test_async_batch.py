@@ -1,4 +1,4 @@
-"""AsyncFoamEnv (foam_bridge.async_batch) and the stand-in solver (foam_bridge.standin), on the local pool;
+"""AsyncFoamEnv (foam_bridge._async_batch) and the stand-in solver (foam_bridge._standin), on the local pool;
 AsyncFoamEnv's snapshot and replay (a resume) from every state an env can be in.
 
 The stand-in sleeps milliseconds per step, so these run in seconds without OpenFOAM; the real solver
@@ -17,10 +17,10 @@ import numpy as np
 import pytest
 from foam_marks import needs_openfoam
 
-from foam_bridge.async_batch import AsyncFoamEnv
-from foam_bridge.batched import SEED_BOUND, BatchedFoamEnv
-from foam_bridge.config import FoamEnvConfig
-from foam_bridge.standin import Profile, StandIn, StandInEnv
+from foam_bridge._async_batch import AsyncFoamEnv
+from foam_bridge._batched import SEED_BOUND, BatchedFoamEnv
+from foam_bridge._config import FoamEnvConfig
+from foam_bridge._standin import Profile, StandIn, StandInEnv
 
 CFG = FoamEnvConfig(mesh_scale=0.5)
 #: Episodes of 2, 3 and 4 steps (the last one partial: 50, 20 iterations), 5-10 ms per step.

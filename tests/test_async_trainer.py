@@ -25,10 +25,10 @@ import numpy as np
 import pytest
 from test_async_batch import FAST, FailingResets
 
-from foam_bridge.async_batch import AsyncFoamEnv
-from foam_bridge.batched import BatchedFoamEnv
-from foam_bridge.config import FoamEnvConfig
-from foam_bridge.standin import Profile, StandIn
+from foam_bridge._async_batch import AsyncFoamEnv
+from foam_bridge._batched import BatchedFoamEnv
+from foam_bridge._config import FoamEnvConfig
+from foam_bridge._standin import Profile, StandIn
 from jaxsimrl.agents.ppo import make_train
 from jaxsimrl.agents.ppo.config import PPOConfig
 from jaxsimrl.agents.ppo.losses import Batch, compute_gae_per_env, ppo_loss

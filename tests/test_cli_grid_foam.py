@@ -1,4 +1,4 @@
-"""``jaxsimrl grid-foam`` and foam_bridge.grid: CLI errors, CSV/heatmap output, and a real 2x2 grid.
+"""``jaxsimrl grid-foam`` and foam_bridge._grid: CLI errors, CSV/heatmap output, and a real 2x2 grid.
 
 The end-to-end test runs real simpleFoam on the smallest usable mesh (0.4) and checks one cell against
 FoamCaseEnv driven directly with the same constant factors.
@@ -19,8 +19,8 @@ import pytest
 from foam_marks import needs_openfoam
 from slow_case import STOP_LIMIT_S, all_into_a_step, episode_progress, seconds_until, wait_until
 
-from foam_bridge.config import MESH_SCALE_USABLE_MIN, FoamEnvConfig
-from foam_bridge.grid import (
+from foam_bridge._config import MESH_SCALE_USABLE_MIN, FoamEnvConfig
+from foam_bridge._grid import (
     GRID_COLUMNS,
     GridCell,
     best_cell,
@@ -192,7 +192,7 @@ def test_heatmap_text_fits_inside_the_figure_whatever_the_grid(shape):
 
 @needs_openfoam
 def test_default_grid_cell_runs_the_papers_simplec_with_k_omega_at_0_8(capsys, tmp_path):
-    from foam_bridge.env import FoamCaseEnv
+    from foam_bridge._env import FoamCaseEnv
 
     cells = {}
     plain = ("--simple-variant", "SIMPLE", "--relax-k-omega", "alpha_u")
@@ -217,7 +217,7 @@ def test_default_grid_cell_runs_the_papers_simplec_with_k_omega_at_0_8(capsys, t
 @pytest.mark.slow  # a grid of whole runs
 @needs_openfoam
 def test_grid_end_to_end_matches_the_env(capsys, tmp_path):
-    from foam_bridge.env import FoamCaseEnv
+    from foam_bridge._env import FoamCaseEnv
 
     out = tmp_path / "out"
     # Mesh 0.4 (the usable minimum): the alpha_u 0.95 cells converge within the cap (237 and 181
@@ -260,7 +260,7 @@ class _ScriptedPool:
         self.resets: list[int] = []
 
     def run(self, requests):
-        from foam_bridge.backends import Reply
+        from foam_bridge._backends import Reply
 
         replies = []
         for request in requests:
@@ -279,8 +279,8 @@ class _ScriptedPool:
 
 
 def test_two_slots_freed_in_one_step_with_one_cell_left_start_only_that_cell(monkeypatch, tmp_path):
-    from foam_bridge import episodes
-    from foam_bridge.grid import run_grid
+    from foam_bridge import _episodes as episodes
+    from foam_bridge._grid import run_grid
 
     pool = _ScriptedPool()
     monkeypatch.setattr(episodes, "make_backend", lambda *args: pool)
@@ -299,7 +299,7 @@ def test_a_stopped_grid_on_a_refined_mesh_leaves_no_solver_within_5_s(tmp_path, 
     100 lasts close to a minute): Ctrl-C (to the whole group, as a terminal sends it) or SIGTERM, sent
     while both solvers are a few iterations into a step, leaves no solver after 5 s and says what
     OUT holds."""
-    from foam_bridge.backends.reaper import processes_under
+    from foam_bridge._backends.reaper import processes_under
 
     tmp = tmp_path / "tmp"
     tmp.mkdir()

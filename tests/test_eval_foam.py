@@ -17,9 +17,9 @@ import numpy as np
 import pytest
 from foam_marks import needs_openfoam
 
-from foam_bridge.config import TEST_CONVERGENCE, TRAIN_CONVERGENCE, FoamEnvConfig
-from foam_bridge.grid import GridCell, write_grid_csv
-from foam_bridge.logparse import solver_cost
+from foam_bridge._config import TEST_CONVERGENCE, TRAIN_CONVERGENCE, FoamEnvConfig
+from foam_bridge._grid import GridCell, write_grid_csv
+from foam_bridge._logparse import solver_cost
 from jaxsimrl.apps.foam.config import foam_config_from_json, foam_config_to_json
 from jaxsimrl.cli.main import main
 
@@ -179,7 +179,7 @@ class ScriptedBackend:
         self.slot_uid, self.steps, self.stepped = {}, {}, []
 
     def run(self, requests):
-        from foam_bridge.backends import Reply
+        from foam_bridge._backends import Reply
 
         replies = []
         for request in requests:
@@ -211,7 +211,7 @@ class ScriptedBackend:
 
 
 def _scripted(monkeypatch, backend, lengths, pool):
-    from foam_bridge import episodes
+    from foam_bridge import _episodes as episodes
     from jaxsimrl.apps.foam.evaluation import runner as foam_runner
     from jaxsimrl.apps.foam.evaluation.controllers import ConstantController
 
@@ -383,9 +383,9 @@ def test_eval_writes_its_files_and_one_run_per_deterministic_cell(evaluation):
 
 @needs_openfoam
 def test_best_constant_is_the_grids_best_and_matches_the_env_run_directly(evaluation, tmp_path):
-    from foam_bridge.env import FoamCaseEnv
-    from foam_bridge.grid import best_cell, read_grid_csv
-    from foam_bridge.logparse import read_solver_cost
+    from foam_bridge._env import FoamCaseEnv
+    from foam_bridge._grid import best_cell, read_grid_csv
+    from foam_bridge._logparse import read_solver_cost
 
     out, report = evaluation
     cells = read_grid_csv(out / "baseline_grid.csv")
@@ -449,8 +449,8 @@ def _run_directly(cfg, uid, factors, case_copy):
     """One episode with constant factors on FoamCaseEnv itself; returns its record and final U field."""
     import shutil
 
-    from foam_bridge.env import FoamCaseEnv
-    from foam_bridge.fields import final_field
+    from foam_bridge._env import FoamCaseEnv
+    from foam_bridge._fields import final_field
 
     with FoamCaseEnv(dataclasses.replace(cfg, keep_cases=True), work_dir=case_copy.parent / "work") as env:
         env.reset(seed=uid, options={"inlet_velocity": VELOCITY})
@@ -465,8 +465,8 @@ def _run_directly(cfg, uid, factors, case_copy):
 @pytest.mark.slow  # evaluation and another eval-foam run
 @needs_openfoam
 def test_a_subset_of_controllers_runs_only_those_and_the_same_episodes(evaluation, saved_run, tmp_path):
-    from foam_bridge.config import without_convergence_test
-    from foam_bridge.fields import relative_l2
+    from foam_bridge._config import without_convergence_test
+    from foam_bridge._fields import relative_l2
     from jaxsimrl.apps.foam.evaluation.eval_spec import REFERENCE, episode_uid
 
     full_out, full = evaluation
@@ -553,7 +553,7 @@ def test_a_reference_cache_reuses_a_reference_only_for_the_same_inputs(saved_run
 def test_the_reference_key_follows_the_case_files_and_not_where_they_run(tmp_path):
     import shutil
 
-    from foam_bridge.template import TEMPLATE_DIR
+    from foam_bridge._template import TEMPLATE_DIR
     from jaxsimrl.apps.foam.evaluation.reference_cache import reference_keys
 
     def reference_key(cfg, velocity, factors):
@@ -583,7 +583,7 @@ def test_the_no_training_rules_run_in_the_protocol_at_their_own_step_length(save
     """``--controllers residual_rule bandit``: solve's rules, from the tutorial's defaults in the training
     box, each stepping at its own interval; the residual rule's run is the episode FoamCaseEnv gives when
     the rule acts on its residuals directly."""
-    from foam_bridge.env import FoamCaseEnv
+    from foam_bridge._env import FoamCaseEnv
     from jaxsimrl.apps.foam.evaluation.eval_spec import episode_uid
     from jaxsimrl.apps.foam.solve.rules import INTERVALS, ResidualRule
 

@@ -1,4 +1,4 @@
-"""Case families (foam_bridge.family) from OpenFOAM's own simpleFoam tutorials and the built-in step,
+"""Case families (foam_bridge._family) from OpenFOAM's own simpleFoam tutorials and the built-in step,
 on the real OpenFOAM: each variant's files hold the varied values as OpenFOAM reads them
 (``foamDictionary``), the manifest says what was built, a seed gives the same family, every variant
 runs simpleFoam, and a variation that cannot apply is refused before anything is written."""
@@ -16,9 +16,9 @@ import pytest
 from foam_marks import OPENFOAM, needs_openfoam
 
 from foam_bridge import Variation, build_family, sample_variations
-from foam_bridge.family import MANIFEST, read_manifest
-from foam_bridge.openfoam import find_openfoam
-from foam_bridge.template import TEMPLATE_DIR
+from foam_bridge._family import MANIFEST, read_manifest
+from foam_bridge._openfoam import find_openfoam
+from foam_bridge._template import TEMPLATE_DIR
 from jaxsimrl.cli.main import main
 
 TUTORIALS = Path("/usr/share/doc/openfoam-examples/examples/incompressible/simpleFoam")

@@ -15,8 +15,8 @@ import math
 import pytest
 from foam_marks import needs_openfoam
 
-from foam_bridge.config import FoamEnvConfig
-from foam_bridge.grid import (
+from foam_bridge._config import FoamEnvConfig
+from foam_bridge._grid import (
     GRID_COLUMNS_3D,
     GridCell,
     best_cell,

@@ -17,14 +17,14 @@ import numpy as np
 import pytest
 from foam_marks import HAVE_OPENFOAM, needs_openfoam
 
-from foam_bridge.backends import WORKER_DIED, env_dir, validate_pool
-from foam_bridge.backends.reaper import kill_processes_under, processes_under
-from foam_bridge.batched import BatchedFoamEnv, failure_reward
-from foam_bridge.config import FoamEnvConfig
-from foam_bridge.env import FoamCaseEnv
-from foam_bridge.errors import OpenFOAMNotFoundError
-from foam_bridge.openfoam import OpenFOAM
-from foam_bridge.records import EpisodeRecord
+from foam_bridge._backends import WORKER_DIED, env_dir, validate_pool
+from foam_bridge._backends.reaper import kill_processes_under, processes_under
+from foam_bridge._batched import BatchedFoamEnv, failure_reward
+from foam_bridge._config import FoamEnvConfig
+from foam_bridge._env import FoamCaseEnv
+from foam_bridge._errors import OpenFOAMNotFoundError
+from foam_bridge._openfoam import OpenFOAM
+from foam_bridge._records import EpisodeRecord
 
 # Smallest usable mesh, 300-iteration cap: an episode is at most 3 steps of 100 iterations.
 COARSE = FoamEnvConfig(mesh_scale=0.4, simple_variant="SIMPLEC", relax_k_omega=0.8, max_iterations=300,
@@ -175,7 +175,7 @@ def test_pool_of_two_runs_two_cases_with_autoreset_and_accounting(tmp_path):
             failed = record["outcome"] in ("crashed", "diverged", "hung")
             expected = -COARSE.max_iterations if failed else -record["iterations"]
             assert record["sum_of_rewards"] == expected == record["episode"]["return"]
-            # one record (foam_bridge.records), with where it ran and which env ran it
+            # one record (foam_bridge._records), with where it ran and which env ran it
             assert set(record["episode"]) == set(EpisodeRecord(env_id=0, node="").to_json())
             # Auto-reset: obs is the next episode's first observation (internal field at rest, so the
             # state is the inlet's |U|^2 only), not the final one.

@@ -10,18 +10,20 @@ import pytest
 from foam_marks import needs_openfoam
 from foamlib import FoamFile
 
-from foam_bridge import base_case, episode_case, template
-from foam_bridge.config import (
+from foam_bridge import _base_case as base_case
+from foam_bridge import _episode_case as episode_case
+from foam_bridge import _template as template
+from foam_bridge._config import (
     OBSERVATION_BOUND,
     STEP_HEIGHT_H,
     TEST_CONVERGENCE,
     FoamEnvConfig,
     failure_reward,
 )
-from foam_bridge.env import bounded_observation, observation_spec
-from foam_bridge.errors import OpenFOAMNotFoundError
+from foam_bridge._env import bounded_observation, observation_spec
+from foam_bridge._errors import OpenFOAMNotFoundError
+from foam_bridge._openfoam import find_openfoam
 from foam_bridge.foamdict import expand
-from foam_bridge.openfoam import find_openfoam
 
 H = STEP_HEIGHT_H
 

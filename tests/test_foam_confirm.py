@@ -16,10 +16,10 @@ import numpy as np
 import pytest
 from foam_marks import needs_openfoam
 
-from foam_bridge.config import FoamEnvConfig, without_convergence_test
-from foam_bridge.confirm import _checked_fields, meets, step_turbulence_factor
-from foam_bridge.env import FoamCaseEnv
-from foam_bridge.logparse import LogParser, solver_cost
+from foam_bridge._config import FoamEnvConfig, without_convergence_test
+from foam_bridge._confirm import _checked_fields, meets, step_turbulence_factor
+from foam_bridge._env import FoamCaseEnv
+from foam_bridge._logparse import LogParser, solver_cost
 from jaxsimrl.cli.main import main
 
 HONEST = [(0.95, 0.875)]

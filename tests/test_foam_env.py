@@ -19,12 +19,13 @@ import pytest
 from foam_marks import OPENFOAM
 from foamlib import FoamFile
 
-from foam_bridge import episode_case, template
-from foam_bridge.config import TEST_CONVERGENCE, U_REF, FoamEnvConfig
-from foam_bridge.env import FoamCaseEnv, action_spec, observation_spec
-from foam_bridge.errors import CaseError
-from foam_bridge.logparse import LogParser
-from foam_bridge.solver import FoamSolver, run_to_end
+from foam_bridge import _episode_case as episode_case
+from foam_bridge import _template as template
+from foam_bridge._config import TEST_CONVERGENCE, U_REF, FoamEnvConfig
+from foam_bridge._env import FoamCaseEnv, action_spec, observation_spec
+from foam_bridge._errors import CaseError
+from foam_bridge._logparse import LogParser
+from foam_bridge._solver import FoamSolver, run_to_end
 from jaxsimrl.agents.ppo.distribution import to_box
 from jaxsimrl.envs.host import HostVecEnv
 

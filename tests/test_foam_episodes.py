@@ -1,4 +1,4 @@
-"""foam_bridge.episodes: the episode pool under grid-foam, eval-foam and policy rollouts.
+"""foam_bridge._episodes: the episode pool under grid-foam, eval-foam and policy rollouts.
 
 The pool test runs real simpleFoam on the coarse mesh (0.4): a queue longer than the pool, each job with
 its own reset options and its own kind of controller, and one job that fails without stopping the rest.
@@ -11,8 +11,8 @@ import pytest
 from foam_marks import needs_openfoam
 
 from foam_bridge import EpisodeJob, run_episodes
-from foam_bridge.config import FoamEnvConfig
-from foam_bridge.episodes import check_pool
+from foam_bridge._config import FoamEnvConfig
+from foam_bridge._episodes import check_pool
 
 FACTORS = (0.95, 0.3)  # converges in a few hundred iterations on mesh 0.4
 

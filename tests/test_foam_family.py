@@ -12,10 +12,11 @@ import pytest
 from foam_marks import needs_openfoam
 from foamlib import FoamFile
 
-from foam_bridge import episode_case, template
-from foam_bridge.config import STEP_HEIGHT_H, FoamEnvConfig
-from foam_bridge.confirm import _checked_fields, confirm, meets
-from foam_bridge.env import FoamCaseEnv, observation_spec
+from foam_bridge import _episode_case as episode_case
+from foam_bridge import _template as template
+from foam_bridge._config import STEP_HEIGHT_H, FoamEnvConfig
+from foam_bridge._confirm import _checked_fields, confirm, meets
+from foam_bridge._env import FoamCaseEnv, observation_spec
 
 H, H2 = STEP_HEIGHT_H, 2 * STEP_HEIGHT_H
 

@@ -1,4 +1,4 @@
-"""The env options that let one controller act on many cases (foam_bridge.config): an observation without
+"""The env options that let one controller act on many cases (foam_bridge._config): an observation without
 the flow state and with the algorithm, actions as shares of each case's own box, a reward scaled per case.
 Logic first, then one real episode of the coarse built-in case."""
 
@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from foam_marks import needs_openfoam
 
-from foam_bridge.config import FoamEnvConfig
-from foam_bridge.env import FoamCaseEnv, action_spec, factors_of, observation_spec, shares_of
-from foam_bridge.family_env import CaseFamilyEnv
+from foam_bridge._config import FoamEnvConfig
+from foam_bridge._env import FoamCaseEnv, action_spec, factors_of, observation_spec, shares_of
+from foam_bridge._family_env import CaseFamilyEnv
 from jaxsimrl.apps.foam.solve.settings import CaseSettings, around_own
 
 SHARED = dict(observe_state=False, observe_algorithm=True, action_share=True, residual_features=2,

@@ -23,16 +23,16 @@ from foam_marks import needs_openfoam
 from foamlib import FoamFile
 from slow_case import STOP_LIMIT_S, episode_progress, seconds_until, slow_pitz_daily, wait_until
 
-from foam_bridge import solver as foam_solver
-from foam_bridge.backends import Request, env_dir, make_backend
-from foam_bridge.backends.reaper import processes_under
-from foam_bridge.batched import BatchedFoamEnv
-from foam_bridge.config import U_REF, FoamEnvConfig
-from foam_bridge.env import FoamCaseEnv
-from foam_bridge.episode_case import CONTROL_INCLUDE, PAUSE_FUNCTION
-from foam_bridge.logparse import LogParser
-from foam_bridge.openfoam import OpenFOAM
-from foam_bridge.solver import EXITED, HUNG, MISSED, PAUSED, FoamSolver
+from foam_bridge import _solver as foam_solver
+from foam_bridge._backends import Request, env_dir, make_backend
+from foam_bridge._backends.reaper import processes_under
+from foam_bridge._batched import BatchedFoamEnv
+from foam_bridge._config import U_REF, FoamEnvConfig
+from foam_bridge._env import FoamCaseEnv
+from foam_bridge._episode_case import CONTROL_INCLUDE, PAUSE_FUNCTION
+from foam_bridge._logparse import LogParser
+from foam_bridge._openfoam import OpenFOAM
+from foam_bridge._solver import EXITED, HUNG, MISSED, PAUSED, FoamSolver
 from jaxsimrl.envs.host import HostVecEnv
 
 COARSE = FoamEnvConfig(mesh_scale=0.4, interval=10, max_iterations=300, step_timeout_s=60.0)
@@ -301,9 +301,9 @@ def _the_retried_reset_is_a_non_transition(env: BatchedFoamEnv, stale: np.ndarra
 
 DRIVER = """
 import json, sys
-from foam_bridge.async_batch import AsyncFoamEnv
-from foam_bridge.batched import BatchedFoamEnv
-from foam_bridge.config import FoamEnvConfig
+from foam_bridge._async_batch import AsyncFoamEnv
+from foam_bridge._batched import BatchedFoamEnv
+from foam_bridge._config import FoamEnvConfig
 
 if __name__ == "__main__":
     cfg = FoamEnvConfig(mesh_scale=0.4, interval=10, max_iterations=300, step_timeout_s=60.0)
@@ -409,8 +409,8 @@ def test_an_idle_worker_closes_its_envs_itself(tmp_path):
 
 MID_STEP_DRIVER = """
 import json, sys
-from foam_bridge.batched import BatchedFoamEnv
-from foam_bridge.config import FoamEnvConfig
+from foam_bridge._batched import BatchedFoamEnv
+from foam_bridge._config import FoamEnvConfig
 
 if __name__ == "__main__":
     cfg = FoamEnvConfig(case_dir=sys.argv[2], interval=100, max_iterations=300, step_timeout_s=600.0)

@@ -1,4 +1,4 @@
-"""foam_bridge.fields: the final field of a case and the relative L2 distance between two fields."""
+"""foam_bridge._fields: the final field of a case and the relative L2 distance between two fields."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from foamlib import FoamFieldFile
 
-from foam_bridge.fields import final_field, relative_l2, time_directories
+from foam_bridge._fields import final_field, relative_l2, time_directories
 
 
 def _write_u(case, time, value):

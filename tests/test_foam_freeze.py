@@ -12,8 +12,8 @@ import pytest
 from foam_marks import needs_openfoam
 
 from foam_bridge import criterion_distance
-from foam_bridge.config import FoamEnvConfig
-from foam_bridge.env import FoamCaseEnv
+from foam_bridge._config import FoamEnvConfig
+from foam_bridge._env import FoamCaseEnv
 from jaxsimrl.apps.foam.solve.drive import LearnedActor
 
 

@@ -15,7 +15,7 @@ from gymnasium.utils.env_checker import check_env
 from gymnasium.vector import AutoresetMode
 
 import foam_bridge
-from foam_bridge.errors import OpenFOAMNotFoundError
+from foam_bridge._errors import OpenFOAMNotFoundError
 
 COARSE = {"mesh_scale": 0.4, "simple_variant": "SIMPLEC", "relax_k_omega": 0.8, "max_iterations": 200,
           "step_timeout_s": 60.0}
@@ -25,7 +25,7 @@ def test_import_registers_the_id_without_jax():
     code = "import sys, gymnasium, foam_bridge; assert foam_bridge.ENV_ID in gymnasium.registry; " \
            "assert 'jax' not in sys.modules; print(gymnasium.spec(foam_bridge.ENV_ID).vector_entry_point)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
-    assert out.strip() == "foam_bridge.gym_envs:RelaxationControlVecEnv"
+    assert out.strip() == "foam_bridge._gym_envs:RelaxationControlVecEnv"
 
 
 @pytest.mark.parametrize("maker", [gym.make, lambda *a, **k: gym.make_vec(*a, num_envs=2, **k)])

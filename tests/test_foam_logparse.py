@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from foam_bridge.logparse import LogParser, field_residual
+from foam_bridge._logparse import LogParser, field_residual
 
 # Captured from a real run of the bridge's case (mesh_scale 0.3, SIMPLEC): the last two iterations.
 CONVERGED_TAIL = """\

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 from foam_marks import needs_openfoam
 
-from foam_bridge.batched import BatchedFoamEnv
-from foam_bridge.config import FoamEnvConfig
+from foam_bridge._batched import BatchedFoamEnv
+from foam_bridge._config import FoamEnvConfig
 
 pytestmark = pytest.mark.slow  # a local Ray instance and its workers: tens of seconds
 

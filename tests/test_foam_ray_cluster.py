@@ -5,7 +5,7 @@ machine would be (its raylet and everything under it, no graceful drain) while a
 Losing capacity must never hang: the lost node's episodes end with cause "node lost: ...", a
 replacement goes to a node with room (one that joined later included), without room the pool goes on
 with fewer workers, and without any worker the step raises PoolLostError; the same holds for the
-asynchronous batch (foam_bridge.async_batch): each test runs on both batches. Unreachable or too small
+asynchronous batch (foam_bridge._async_batch): each test runs on both batches. Unreachable or too small
 clusters are one-line errors at start. train-foam (its own process, the driver) reaches its episode
 target with a node killed mid-update and resumes onto a node that joined later; with no node left it
 stops in one line saying how to resume. Every wait here is bounded (``bounded``, ``wait_until``,
@@ -31,10 +31,10 @@ import numpy as np
 import pytest
 from foam_marks import needs_openfoam
 
-from foam_bridge.async_batch import AsyncFoamEnv
-from foam_bridge.batched import BatchedFoamEnv
-from foam_bridge.config import FoamEnvConfig
-from foam_bridge.errors import ClusterError, PoolLostError
+from foam_bridge._async_batch import AsyncFoamEnv
+from foam_bridge._batched import BatchedFoamEnv
+from foam_bridge._config import FoamEnvConfig
+from foam_bridge._errors import ClusterError, PoolLostError
 
 ray = pytest.importorskip("ray")
 
@@ -188,7 +188,7 @@ Batch = BatchedFoamEnv | AsyncFoamEnv
 
 def make_batch(kind: str, num_envs: int, pool: int, work_dir: Path) -> Batch:
     """A batch of ``num_envs`` envs on ``pool`` Ray actors; asynchronous: 2 envs per worker, ``pool``
-    per call (foam_bridge.async_batch's advice is 3; 2 keeps the test short)."""
+    per call (foam_bridge._async_batch's advice is 3; 2 keeps the test short)."""
     if kind == "lock-step":
         return BatchedFoamEnv(COARSE, num_envs, "ray", pool, None, work_dir, 5)
     return AsyncFoamEnv(COARSE, 2 * num_envs, pool, backend="ray", pool=pool, work_dir=work_dir, seed=5)
@@ -395,7 +395,7 @@ def test_train_foam_goes_on_after_a_node_loss_and_a_killed_driver_loses_no_episo
 
     Asynchronous (2 envs per worker): the lost node's envs lose one or two episodes (one may be between
     episodes), and a resume replays each env's state (4 of them), as tests/test_async_trainer.py's."""
-    from foam_bridge.backends.reaper import processes_under
+    from foam_bridge._backends.reaper import processes_under
     from jaxsimrl.apps.foam.episodes import EpisodeLog
 
     run, tmp = tmp_path / "run", tmp_path / "tmp"
@@ -444,7 +444,7 @@ def test_train_foam_goes_on_after_a_node_loss_and_a_killed_driver_loses_no_episo
 @needs_openfoam
 @pytest.mark.parametrize("batch", BATCHES)
 def test_train_foam_with_no_node_left_stops_in_one_line_saying_how_to_resume(tmp_path, batch):
-    from foam_bridge.backends.reaper import processes_under
+    from foam_bridge._backends.reaper import processes_under
 
     run, tmp = tmp_path / "run", tmp_path / "tmp"
     tmp.mkdir()
@@ -477,7 +477,7 @@ def _check_resumed_after_a_kill(processes: list[subprocess.Popen], tmp: Path, ru
 
     from test_train_foam import _check_records
 
-    from foam_bridge.backends.reaper import processes_under
+    from foam_bridge._backends.reaper import processes_under
     from jaxsimrl.apps.foam.episodes import EpisodeLog
     from jaxsimrl.runs.checkpoint import Checkpoints
 

@@ -1,4 +1,4 @@
-"""foam_bridge.records: one episode record, one codec (info["episode"] JSON and the episodes.csv row).
+"""foam_bridge._records: one episode record, one codec (info["episode"] JSON and the episodes.csv row).
 
 No solver needed: the real records are those of the committed runs' episodes.csv files (every version of
 the file's columns) and of hand-made infos as the env and the batch hand them out.
@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from foam_bridge.records import COLUMNS, EpisodeRecord, read_rows, rows_to_csv
+from foam_bridge._records import COLUMNS, EpisodeRecord, read_rows, rows_to_csv
 from jaxsimrl.apps.foam.episodes import EpisodeLog
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -90,7 +90,7 @@ def test_a_solver_record_and_a_lost_worker_record_batch_together_in_either_order
     """CI caught this after a Ray node loss: the solver's record (integer counts) and the host's record
     of the lost episode (NaN costs, no seed) ended in the same step, and gymnasium typed the key's array
     by the first env (``cannot convert float NaN to integer``)."""
-    from foam_bridge.batched import _InfoBatcher
+    from foam_bridge._batched import _InfoBatcher
 
     solver = EpisodeRecord(outcome="converged", iterations=300, seed=7, inlet_velocity=40.0,
                            linear_iterations=1234, solver_time_s=2.5, actions=[[0.9, 0.5]]).to_json()

@@ -1,7 +1,7 @@
 """The cost-aware rewards (FoamEnvConfig.reward): linear-solver iterations and solver CPU time.
 
 The env's incremental parser counts the costs as the solver prints them; the tests check them against
-an independent reading of the whole log (foam_bridge.logparse.read_solver_cost) after real simpleFoam
+an independent reading of the whole log (foam_bridge._logparse.read_solver_cost) after real simpleFoam
 runs on the coarse mesh (mesh_scale 0.4, a few seconds each).
 """
 
@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 from foam_marks import needs_openfoam
 
-from foam_bridge import episode_case
-from foam_bridge.config import U_REF, FoamEnvConfig, cost_per_iteration, failure_reward
-from foam_bridge.env import FoamCaseEnv
-from foam_bridge.logparse import LogParser, read_solver_cost
+from foam_bridge import _episode_case as episode_case
+from foam_bridge._config import U_REF, FoamEnvConfig, cost_per_iteration, failure_reward
+from foam_bridge._env import FoamCaseEnv
+from foam_bridge._logparse import LogParser, read_solver_cost
 from jaxsimrl.agents.ppo.losses import compute_gae
 
 BEST = (0.95, 0.95)

@@ -14,9 +14,9 @@ import pytest
 import foam_bridge
 
 PACKAGE = Path(__file__).parent.parent / "foam_bridge"
-MODULES = ["foam_bridge", "foam_bridge.batched", "foam_bridge.env", "foam_bridge.grid",
-           "foam_bridge.gym_envs", "foam_bridge.backends.local", "foam_bridge.backends.ray_backend",
-           "foam_bridge.template", "foam_bridge.user_case", "foam_bridge.export"]
+MODULES = ["foam_bridge", "foam_bridge._batched", "foam_bridge._env", "foam_bridge._grid",
+           "foam_bridge._gym_envs", "foam_bridge._backends.local", "foam_bridge._backends.ray_backend",
+           "foam_bridge._template", "foam_bridge._user_case", "foam_bridge._export"]
 HEAVY = ("jax", "jaxlib", "jaxsimrl")
 
 

@@ -17,12 +17,13 @@ import numpy as np
 import pytest
 from foam_marks import OPENFOAM
 
-from foam_bridge import episode_case, template
-from foam_bridge.config import FoamEnvConfig
-from foam_bridge.env import FoamCaseEnv
-from foam_bridge.errors import CaseError
+from foam_bridge import _episode_case as episode_case
+from foam_bridge import _template as template
+from foam_bridge._config import FoamEnvConfig
+from foam_bridge._env import FoamCaseEnv
+from foam_bridge._errors import CaseError
+from foam_bridge._openfoam import find_openfoam
 from foam_bridge.foamdict import expand
-from foam_bridge.openfoam import find_openfoam
 
 TUTORIALS = Path("/usr/share/doc/openfoam-examples/examples/incompressible/simpleFoam")
 pytestmark = [*OPENFOAM, pytest.mark.skipif(not TUTORIALS.is_dir(), reason="openfoam-examples not installed")]
@@ -250,7 +251,7 @@ def test_a_case_under_a_path_with_spaces_runs_and_a_work_dir_with_spaces_is_refu
 def test_the_final_field_of_a_tutorial_reads_alike_in_ascii_binary_and_compressed(tmp_path):
     from foamlib import FoamFile
 
-    from foam_bridge.fields import final_field
+    from foam_bridge._fields import final_field
 
     with FoamCaseEnv(_cfg(tmp_path, "pitzDaily", max_iterations=100, keep_cases=True)) as env:
         env.reset(seed=0)

@@ -11,13 +11,13 @@ from pathlib import Path
 import pytest
 from foam_marks import needs_openfoam
 
-from foam_bridge.base_case import own_factors
-from foam_bridge.config import FoamEnvConfig
-from foam_bridge.env import FoamCaseEnv
-from foam_bridge.errors import CaseError
+from foam_bridge._base_case import own_factors
+from foam_bridge._config import FoamEnvConfig
+from foam_bridge._env import FoamCaseEnv
+from foam_bridge._errors import CaseError
+from foam_bridge._openfoam import find_openfoam
+from foam_bridge._user_case import BUILTIN_BOX
 from foam_bridge.foamdict import expand
-from foam_bridge.openfoam import find_openfoam
-from foam_bridge.user_case import BUILTIN_BOX
 from jaxsimrl.apps.foam.config import foam_config_from_json, foam_config_to_json
 from jaxsimrl.cli.main import main
 

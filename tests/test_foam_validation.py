@@ -1,4 +1,4 @@
-"""foam_bridge.validation: the post-processing helpers on synthetic data, and one real coarse run.
+"""foam_bridge._validation: the post-processing helpers on synthetic data, and one real coarse run.
 
 The real run goes through experiments/paper/fig_cfd_validation.py's ``validate`` (simpleFoam, then
 ``simpleFoam -postProcess`` with the sampling dictionary) on the 0.4 mesh (3,276 cells).
@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 from foam_marks import needs_openfoam
 
-from foam_bridge import validation as val
-from foam_bridge.config import STEP_HEIGHT_H, U_REF
+from foam_bridge import _validation as val
+from foam_bridge._config import STEP_HEIGHT_H, U_REF
 
 SCRIPT = Path(__file__).resolve().parents[1] / "experiments" / "paper" / "fig_cfd_validation.py"
 H = STEP_HEIGHT_H

@@ -15,7 +15,7 @@ import pytest
 from foam_marks import needs_openfoam
 
 import jaxsimrl
-from foam_bridge.config import U_REF, FoamEnvConfig
+from foam_bridge._config import U_REF, FoamEnvConfig
 from jaxsimrl.apps.foam.introspect import factor_history, plot_factor_history
 from jaxsimrl.apps.foam.spec import foam_obs_names
 from jaxsimrl.introspect import plot_policy_profile, policy_profile

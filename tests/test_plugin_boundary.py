@@ -5,6 +5,7 @@ jaxsimrl.plugin's contract alone, as the OpenFOAM one does and as a new one woul
 from __future__ import annotations
 
 import ast
+import re
 import sys
 import textwrap
 from importlib.metadata import EntryPoint
@@ -14,7 +15,7 @@ import pytest
 
 import foam_bridge
 import jaxsimrl.plugin as plugin
-from foam_bridge.env import FAILURES
+from foam_bridge._env import FAILURES
 from jaxsimrl.cli.main import build_parser
 from jaxsimrl.policy.spec import env_spec
 
@@ -51,9 +52,9 @@ def test_the_scan_sees_an_import_and_a_branch() -> None:
     assert len(_core_files()) > 50
     assert _application_names(ROOT / "apps" / "foam" / "spec.py")  # the application's own imports
     source = ROOT.parent / "tests" / "_branching_core_example.py"
-    source.write_text('import foam_bridge.env\nif env == "foam":\n    pass\n')
+    source.write_text('import foam_bridge._env\nif env == "foam":\n    pass\n')
     try:
-        assert _application_names(source) == ["imports foam_bridge.env", "string 'foam'"]
+        assert _application_names(source) == ["imports foam_bridge._env", "string 'foam'"]
     finally:
         source.unlink()
 
@@ -78,6 +79,26 @@ def test_jaxsimrl_uses_foam_bridge_s_public_face_alone() -> None:
             elif isinstance(node, ast.ImportFrom) and node.module == "foam_bridge":
                 unknown += [f"{where} {a.name}" for a in node.names if a.name not in foam_bridge.__all__]
     assert deep == [] and unknown == []
+
+
+def test_foam_bridge_s_internals_are_private_and_its_face_complete() -> None:
+    """foamlib's layout: the package's names are its face, every module behind them is ``_name`` (but the
+    public module ``foamdict``), and every name of ``__all__`` loads."""
+    package = Path(foam_bridge.__file__).parent
+    modules = [path for path in package.iterdir() if path.suffix == ".py" or (path / "__init__.py").exists()]
+    public = {path.stem for path in modules if not path.stem.startswith("_")}
+    assert public == set(foam_bridge._MODULES)
+    missing = [name for name in foam_bridge.__all__ if getattr(foam_bridge, name, None) is None]
+    assert missing == [] and set(foam_bridge._EXPORTS) <= set(foam_bridge.__all__)
+
+
+def test_the_docs_show_foam_bridge_s_public_face_alone() -> None:
+    """What a user copies (README, docs pages) imports no private module of foam_bridge."""
+    pages = [ROOT.parent / "README.md", *sorted((ROOT.parent / "docs").rglob("*.md"))]
+    deep = re.compile(r"(?:from|import)\s+foam_bridge\._")
+    found = [f"{page.name}:{number}" for page in pages
+             for number, line in enumerate(page.read_text().splitlines(), 1) if deep.search(line)]
+    assert len(pages) > 5 and found == []
 
 
 def test_the_foam_application_plugs_in_through_the_contract() -> None:

@@ -23,10 +23,11 @@ from foam_marks import OPENFOAM
 from foamlib import FoamFile
 from slow_case import STOP_LIMIT_S, iterations_in, seconds_until, slow_pitz_daily, wait_until
 
-from foam_bridge import foamdict, template
-from foam_bridge.config import FoamEnvConfig
-from foam_bridge.logparse import LogParser
-from foam_bridge.openfoam import BRIDGE_MARK, find_openfoam
+from foam_bridge import _template as template
+from foam_bridge import foamdict
+from foam_bridge._config import FoamEnvConfig
+from foam_bridge._logparse import LogParser
+from foam_bridge._openfoam import BRIDGE_MARK, find_openfoam
 from jaxsimrl import load_policy
 from jaxsimrl.apps.foam.solve import DEFAULT_CONTROLLER, Controller, SolveReport, solve_case
 from jaxsimrl.apps.foam.solve.agreement import compare_results, summary_line, tolerances

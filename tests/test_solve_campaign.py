@@ -24,10 +24,10 @@ from foamlib import FoamFile
 from slow_case import STOP_LIMIT_S, iterations_in, seconds_until, wait_until
 from test_solve import _coarse_step
 
-from foam_bridge import template
-from foam_bridge.backends import Request
-from foam_bridge.backends.base import _batch_deadline_s, start_deadline_s
-from foam_bridge.backends.reaper import processes_under
+from foam_bridge import _template as template
+from foam_bridge._backends import Request
+from foam_bridge._backends.base import _batch_deadline_s, start_deadline_s
+from foam_bridge._backends.reaper import processes_under
 from jaxsimrl.apps.foam.solve.campaign import CASE_TIMEOUT_S, CampaignSettings, find_cases, plan_campaign
 from jaxsimrl.apps.foam.solve.campaign_table import (
     FAILED,

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from foam_marks import needs_openfoam
 
-from foam_bridge.config import FoamEnvConfig
+from foam_bridge._config import FoamEnvConfig
 from jaxsimrl.apps.foam.solve import Controller, solve_case
 from jaxsimrl.apps.foam.solve.fields import UnmappedField, map_fields, observed_mapping
 from jaxsimrl.apps.foam.solve.settings import CaseSettings, not_applicable
@@ -111,7 +111,7 @@ def test_a_closed_loop_controller_sees_its_own_fields_on_a_tutorial(tmp_path, cl
                                                                      budget, expected):
     """pitzDaily (kEpsilon: p, U, epsilon, k) for two steps; T3A (kOmegaSSTLM, six fields) to its own
     criterion, confirmed where the solver met it: the check at 0.9 reads k ~3e-2 from any restart of
-    kOmegaSSTLM, but a step at alpha_t 0.95 >= 0.9 leaves k unchecked (foam_bridge/confirm.py)."""
+    kOmegaSSTLM, but a step at alpha_t 0.95 >= 0.9 leaves k unchecked (foam_bridge/_confirm.py)."""
     if not (TUTORIALS / tutorial).is_dir():
         pytest.skip("openfoam-examples not installed")
     case = Path(shutil.copytree(TUTORIALS / tutorial, tmp_path / tutorial))

@@ -21,7 +21,7 @@ import pytest
 from foam_marks import needs_openfoam
 from slow_case import STOP_LIMIT_S, TUTORIALS, iterations_in, seconds_until, slow_pitz_daily, wait_until
 
-from foam_bridge.parallel import _write_decompose_dict, kill_session, session_processes
+from foam_bridge._parallel import _write_decompose_dict, kill_session, session_processes
 from jaxsimrl.apps.foam.solve.agreement import compare_results
 from jaxsimrl.apps.foam.solve.own import run_own
 

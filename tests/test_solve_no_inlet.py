@@ -12,9 +12,9 @@ from pathlib import Path
 import pytest
 from foam_marks import needs_openfoam
 
-from foam_bridge.base_case import declared_patches
-from foam_bridge.config import FoamEnvConfig
-from foam_bridge.openfoam import find_openfoam
+from foam_bridge._base_case import declared_patches
+from foam_bridge._config import FoamEnvConfig
+from foam_bridge._openfoam import find_openfoam
 from jaxsimrl.apps.foam.solve import solve_case
 from jaxsimrl.apps.foam.solve.settings import inlet_of
 

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from foam_marks import needs_openfoam
 
-from foam_bridge.backends.reaper import processes_under
+from foam_bridge._backends.reaper import processes_under
 from jaxsimrl.apps.foam.episodes import EpisodeLog
 from jaxsimrl.apps.foam.plan import foam_ppo_defaults
 from jaxsimrl.cli.main import main

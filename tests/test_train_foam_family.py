@@ -12,8 +12,8 @@ from pathlib import Path
 import pytest
 from foam_marks import needs_openfoam
 
-from foam_bridge.config import STEP_HEIGHT_H, FoamEnvConfig
-from foam_bridge.grid import read_grid_csv
+from foam_bridge._config import STEP_HEIGHT_H, FoamEnvConfig
+from foam_bridge._grid import read_grid_csv
 from jaxsimrl.apps.foam.config import foam_config_from_json
 from jaxsimrl.apps.foam.episodes import EpisodeLog
 from jaxsimrl.cli.main import main

@@ -29,7 +29,7 @@ from slow_case import (
 )
 from test_train_foam import TINY  # the cheap real runs: smallest mesh, 4 steps per env per update
 
-from foam_bridge.config import FoamEnvConfig
+from foam_bridge._config import FoamEnvConfig
 from jaxsimrl.apps.foam.episodes import EpisodeLog
 from jaxsimrl.apps.foam.plan import episode_steps_bound, total_steps_for
 from jaxsimrl.cli.main import main
@@ -326,7 +326,7 @@ def _stop(process: subprocess.Popen, sig: signal.Signals) -> None:
 @pytest.mark.slow  # a real train-foam run stopped and resumed
 @needs_openfoam
 def test_ctrl_c_stops_now_and_the_run_resumes_from_its_last_checkpoint(tmp_path):
-    from foam_bridge.backends.reaper import processes_under
+    from foam_bridge._backends.reaper import processes_under
 
     run, tmp = tmp_path / "run", tmp_path / "tmp"
     tmp.mkdir()
@@ -357,7 +357,7 @@ def test_a_stopped_train_foam_leaves_no_solver_within_5_s_mid_step(tmp_path, sig
     """Steps that last over a minute (tests/slow_case.py): Ctrl-C, SIGTERM and kill -9 of train-foam,
     sent while both solvers are a few iterations into a step, leave no solver after 5 s. A solver that
     ran on to the end of its step (or of the update) would fail this."""
-    from foam_bridge.backends.reaper import processes_under
+    from foam_bridge._backends.reaper import processes_under
 
     case = slow_pitz_daily(tmp_path / "slow")
     run, tmp = tmp_path / "run", tmp_path / "tmp"

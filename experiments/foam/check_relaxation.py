@@ -3,7 +3,7 @@
 For every run of ``eval-h-error/`` and ``eval-2h-error/`` at one inlet velocity (the policy's mean
 action, the best constant, three random runs; full mesh, test criterion, no check), and for the
 alpha_u-0.2 run of ``criterion_relaxation.py``: replay its actions in a FoamCaseEnv, then run the
-check of foam_bridge.confirm on its final fields at alpha_u 0.95 and 0.9. Writes
+check of foam_bridge._confirm on its final fields at alpha_u 0.95 and 0.9. Writes
 check_relaxation.json next to this script (atomically): per run, its iterations, its U error from
 the evaluation, the solver's residuals at K and each check's residuals.
 
@@ -18,9 +18,9 @@ import json
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
-from foam_bridge.config import TEST_CONVERGENCE, FoamEnvConfig
-from foam_bridge.confirm import confirm
-from foam_bridge.env import FoamCaseEnv
+from foam_bridge._config import TEST_CONVERGENCE, FoamEnvConfig
+from foam_bridge._confirm import confirm
+from foam_bridge._env import FoamCaseEnv
 from jaxsimrl.runs.atomic import atomic_write_json
 
 HERE = Path(__file__).parent

@@ -7,7 +7,7 @@ Three runs of the built-in case (full mesh, SIMPLEC, k/omega 0.8) at one inlet v
 - ``drop``: (0.95, 0.875) for DROP_AT steps (100 iterations each), then alpha_u 0.2, until the criterion.
 
 For every step it records the initial residuals, and for each run the iterations to the criterion and
-the relative L2 distance of its final U field from the reference's (foam_bridge.fields). Writes
+the relative L2 distance of its final U field from the reference's (foam_bridge._fields). Writes
 criterion_relaxation_<geometry>.json next to this script (atomically).
 
     python experiments/foam/criterion_relaxation.py               # 2h, 50 m/s (~8 min on 2 cores)
@@ -23,9 +23,9 @@ import tempfile
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
-from foam_bridge.config import TEST_CONVERGENCE, FoamEnvConfig, without_convergence_test
-from foam_bridge.env import FoamCaseEnv
-from foam_bridge.fields import final_field, relative_l2
+from foam_bridge._config import TEST_CONVERGENCE, FoamEnvConfig, without_convergence_test
+from foam_bridge._env import FoamCaseEnv
+from foam_bridge._fields import final_field, relative_l2
 from jaxsimrl.runs.atomic import atomic_write_json
 
 FACTORS = (0.95, 0.875)

@@ -4,7 +4,7 @@ Runs simpleFoam (SIMPLEC, k-omega SST, U_ref = 44.2 m/s, constant factors alpha_
 k/omega 0.8) for a fixed number of iterations, writing the fields every ``--write-every``, then
 post-processes every written time with OpenFOAM's own function objects in one
 ``simpleFoam -postProcess -dict`` call (wallShearStress, ``sets`` along vertical lines, ``surfaces`` on
-the lower wall and on the mid-plane; see foam_bridge.validation) and writes, into ``--out``:
+the lower wall and on the mid-plane; see foam_bridge._validation) and writes, into ``--out``:
 
 - fig_cfd_contours.png: |U|/U_ref on the mid-plane near the step;
 - fig_cfd_profiles.png: U/U_ref against y/h at x/h = 1, 4, 6, 10;
@@ -16,7 +16,7 @@ The experimental profiles and wall data cannot be downloaded here, so every curv
 only the reattachment lengths are compared (their values as the paper and TMR state them).
 
 ``--step-height 0.0254`` runs the paper's second test geometry, 2h (the step deepened, the floor behind
-it moved down by h; foam_bridge.template.mesh_parameters) and writes the same files with a ``_2h`` suffix.
+it moved down by h; foam_bridge._template.mesh_parameters) and writes the same files with a ``_2h`` suffix.
 Lengths are then in units of that geometry's own step height H (x/H from the step, y/H from the floor
 behind it), as one reports a step flow; the experiment and TMR references belong to h only.
 
@@ -46,9 +46,11 @@ from typing import Any
 import numpy as np
 from foamlib import FoamFile
 
-from foam_bridge import base_case, episode_case, template
-from foam_bridge import validation as val
-from foam_bridge.config import (
+from foam_bridge import _base_case as base_case
+from foam_bridge import _episode_case as episode_case
+from foam_bridge import _template as template
+from foam_bridge import _validation as val
+from foam_bridge._config import (
     NEVER_CONVERGED,
     STEP_HEIGHT_H,
     TEST_CONVERGENCE,
@@ -56,9 +58,9 @@ from foam_bridge.config import (
     U_REF,
     FoamEnvConfig,
 )
-from foam_bridge.logparse import LogParser, field_residual
-from foam_bridge.openfoam import OpenFOAM, find_openfoam
-from foam_bridge.solver import run_to_end
+from foam_bridge._logparse import LogParser, field_residual
+from foam_bridge._openfoam import OpenFOAM, find_openfoam
+from foam_bridge._solver import run_to_end
 from jaxsimrl.runs.atomic import atomic_write_bytes, atomic_write_json
 
 STATIONS_XH = (1.0, 4.0, 6.0, 10.0)
@@ -141,7 +143,7 @@ def run_uninterrupted(cfg: FoamEnvConfig, root: Path, alpha_u: float, alpha_p: f
                       openfoam: OpenFOAM, write_every: int | None = None) -> SolverRun:
     """Mesh the case under ``root/base``, run it start to end in ``root/case`` with constant factors.
 
-    The episode case is the env's (foam_bridge.episode_case.write_episode_case) without the pause, so its
+    The episode case is the env's (foam_bridge._episode_case.write_episode_case) without the pause, so its
     iterations are those of an env episode with the same constant action (tests/test_foam_env.py).
     ``write_every``: also write the fields every that many iterations (default: only at the end).
     """

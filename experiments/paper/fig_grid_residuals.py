@@ -1,8 +1,8 @@
 """Constant-factor heatmap and typical residual histories (the paper's Fig. "heatmap").
 
 1. Runs one env episode with constant factors for every (alpha_u, alpha_p) pair of a small grid
-   (foam_bridge.grid.run_grid: SIMPLEC, k/omega 0.8, inlet U_ref = 44.2 m/s, the local pool) and draws
-   the heatmap with foam_bridge.grid.plot_grid.
+   (foam_bridge._grid.run_grid: SIMPLEC, k/omega 0.8, inlet U_ref = 44.2 m/s, the local pool) and draws
+   the heatmap with foam_bridge._grid.plot_grid.
 2. Reruns the best pair ("good") and the slowest other pair ("bad") as single uninterrupted simpleFoam
    runs of the same episode case (experiments/paper/fig_cfd_validation.run_uninterrupted), which gives
    the whole log, and checks that they take the grid's iteration counts (chunked == uninterrupted).
@@ -41,10 +41,10 @@ from fig_cfd_validation import (
     save_png,
 )
 
-from foam_bridge.config import TEST_CONVERGENCE, TRAIN_CONVERGENCE, U_REF, FoamEnvConfig
-from foam_bridge.grid import GridCell, best_cell, check_factors, grid_config, plot_grid, run_grid
-from foam_bridge.logparse import field_residual
-from foam_bridge.openfoam import find_openfoam
+from foam_bridge._config import TEST_CONVERGENCE, TRAIN_CONVERGENCE, U_REF, FoamEnvConfig
+from foam_bridge._grid import GridCell, best_cell, check_factors, grid_config, plot_grid, run_grid
+from foam_bridge._logparse import field_residual
+from foam_bridge._openfoam import find_openfoam
 from jaxsimrl.runs.atomic import atomic_write_json
 
 CRITERIA = {"train": TRAIN_CONVERGENCE, "test": TEST_CONVERGENCE}

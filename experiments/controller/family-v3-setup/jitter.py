@@ -16,8 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from foam_bridge.config import FoamEnvConfig
-from foam_bridge.env import FoamCaseEnv
+from foam_bridge._config import FoamEnvConfig
+from foam_bridge._env import FoamCaseEnv
 
 RUN = Path("experiments/controller/family-v3")
 

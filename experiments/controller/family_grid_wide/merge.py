@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from foam_bridge.grid import read_grid_csv, write_grid_csv
+from foam_bridge._grid import read_grid_csv, write_grid_csv
 from jaxsimrl.apps.foam.evaluation.family import (
     FAMILY_BEST_JSON,
     family_best,

@@ -6,7 +6,7 @@ run at a time, and append one JSON line per run to --out.
         runs/heldout-v1 --runs 2 --timeout 300 --out experiments/controller/heldout-v1/measurements.jsonl
 
 Each run is on a fresh copy (the prepared case is never written to). Iterations and convergence are read
-by the project's own log parser (foam_bridge.logparse): converged = its residualControl, or its own
+by the project's own log parser (foam_bridge._logparse): converged = its residualControl, or its own
 runTimeControl, ended the run. A run past --timeout counts as not converged at the iterations it had done.
 """
 
@@ -23,9 +23,9 @@ from pathlib import Path
 
 from foamcase import cell_count, foam_env
 
-from foam_bridge.logparse import LogParser
-from foam_bridge.openfoam import find_openfoam
-from foam_bridge.solver import run_to_end
+from foam_bridge._logparse import LogParser
+from foam_bridge._openfoam import find_openfoam
+from foam_bridge._solver import run_to_end
 
 
 def settings(case: Path) -> dict[str, object]:

@@ -13,7 +13,7 @@ core through its public modules; the core finds it through ``APP`` (jaxsimrl.app
 
 from jaxsimrl.plugin import App
 
-#: foam_bridge.env.FAILURES, spelled out so that finding the application imports nothing of foam_bridge
+#: foam_bridge._env.FAILURES, spelled out so that finding the application imports nothing of foam_bridge
 #: (tests/test_plugin_boundary.py holds the two equal).
 FAILED_OUTCOMES = frozenset({"crashed", "diverged", "hung"})
 

@@ -6,7 +6,7 @@ The JSON codec of the ``"foam"`` section of a config.json is on the class
 
 A config.json always names every field, its convergence criterion and action box included, so a run
 keeps the MDP it was written with. :func:`user_case_config` gives a user's case (``case_dir``) the case's
-own criterion and action box (foam_bridge.user_case) where they are not set explicitly.
+own criterion and action box (foam_bridge._user_case) where they are not set explicitly.
 """
 
 from __future__ import annotations
@@ -36,7 +36,7 @@ def user_case_config(cfg: FoamEnvConfig, explicit: Iterable[str],
                      checked: tuple[Path, CaseInfo] | None = None) -> FoamEnvConfig:
     """``cfg`` of a user's case with the case's own convergence criterion and action box, for each of
     them not in ``explicit`` (the fields the user set); one-line CaseError if the case cannot run.
-    ``checked``: the case already built and checked (foam_bridge.user_case.case_defaults)."""
+    ``checked``: the case already built and checked (foam_bridge._user_case.case_defaults)."""
     given = set(explicit)
     if given & {"action_low", "action_high"}:  # the box is set as a whole
         given |= {"action_low", "action_high"}

@@ -1,6 +1,6 @@
 """episodes.csv of a train-foam run: one row per finished episode, and its statistics.
 
-The columns and their codec are foam_bridge.records' (:class:`foam_bridge.records.EpisodeRecord`, one row
+The columns and their codec are foam_bridge._records' (:class:`foam_bridge._records.EpisodeRecord`, one row
 of the file); this log numbers the rows and keeps the file. ``update`` is the PPO update whose rollout
 the episode ended in (1-based). The file is rewritten whole and atomically after every update, before
 that update's checkpoint; on resume from checkpoint N the rows of updates after N are dropped (the same

@@ -15,7 +15,7 @@ from jaxsimrl.apps.foam.config import foam_config_from_json
 from jaxsimrl.policy.spec import EnvSpec
 
 #: The foam observation's first component: (mean inlet |U|^2 + mean cells |U|^2) / state_scale, the
-#: paper's state divided by U_ref^2 = 44.2^2 by default (foam_bridge.env).
+#: paper's state divided by U_ref^2 = 44.2^2 by default (foam_bridge._env).
 FOAM_STATE_NAME = "state"
 
 

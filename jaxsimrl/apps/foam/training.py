@@ -1,11 +1,11 @@
 """train-foam as a library call: :func:`train_foam` runs a resolved :class:`FoamPlan` into a run directory.
 
 The same PPO as train-lorenz (jaxsimrl.agents.ppo) on a :class:`jaxsimrl.envs.host.HostVecEnv` over a
-``foam_bridge.batched.BatchedFoamEnv`` of ``num_envs`` cases on ``pool`` workers. One update = one
+``foam_bridge._batched.BatchedFoamEnv`` of ``num_envs`` cases on ``pool`` workers. One update = one
 jitted chunk; after it the episodes that ended in it come back from the host env as data
 (``HostVecEnv.take_episodes``) and join episodes.csv with that update's number; then the metrics rows,
 episodes.csv, a checkpoint and summary.json are written (in that order, Ctrl-C held back). With
-PPOConfig.async_envs the batch is asynchronous instead (``foam_bridge.async_batch.AsyncFoamEnv`` behind
+PPOConfig.async_envs the batch is asynchronous instead (``foam_bridge._async_batch.AsyncFoamEnv`` behind
 :class:`jaxsimrl.envs.host_async.AsyncHostVecEnv`): num_envs of its async_envs cases per learner step,
 whichever are ready first.
 
@@ -60,7 +60,7 @@ class FoamPlan:
     resume: bool
     record: dict[str, Any] = field(default_factory=dict)
     init_from: Any = None  # jaxsimrl.introspect.LoadedPolicy whose network the run starts from
-    #: What each worker of the batch builds instead of a FoamCaseEnv (tests: foam_bridge.standin).
+    #: What each worker of the batch builds instead of a FoamCaseEnv (tests: foam_bridge._standin).
     make_env: Any = None
     #: A family of cases (name -> FoamEnvConfig, jaxsimrl.apps.foam.cli.train_family): each env draws one per
     # episode.
@@ -79,7 +79,7 @@ def train_foam(plan: FoamPlan, run: Any, *, tensorboard: bool = False,
     ``on_chunk(updates_done)`` is told of each update once it is on disk (a test hook);
     ``on_interrupt(count, signum)`` of each Ctrl-C or SIGTERM during an update, at once (the live
     progress bar is stopped first): the solvers run until the update ends unless the hook ends the
-    process, as train-foam's does (its workers then kill their solvers: foam_bridge.backends.local).
+    process, as train-foam's does (its workers then kill their solvers: foam_bridge._backends.local).
     Raises foam_bridge's CaseError / ClusterError / OpenFOAMNotFoundError for a case or setup that cannot
     run, ResumeError for a checkpoint that does not fit, HostEnvError for a broken host side,
     KeyboardInterrupt (Terminated for SIGTERM) after a saved update.
@@ -136,7 +136,7 @@ def train_foam(plan: FoamPlan, run: Any, *, tensorboard: bool = False,
 
 def _host_env(plan: FoamPlan) -> Any:
     """The plan's env batch as a VecEnv: lock-step (BatchedFoamEnv), or asynchronous (AsyncFoamEnv of
-    async_envs cases, num_envs per learner step) with each worker step timed (foam_bridge.timing.TimedSteps)
+    async_envs cases, num_envs per learner step) with each worker step timed (foam_bridge._timing.TimedSteps)
     for its pool utilisation. The batch is re-seeded from the trainer's key at every reset; this seed only
     names its streams."""
     if plan.ppo.async_envs is None:

@@ -1,5 +1,5 @@
 """``jaxsimrl family BASE [BASE ...] --out DIR``: a family of variant cases from base OpenFOAM cases
-(foam_bridge.family), to train or evaluate a controller on many cases.
+(foam_bridge._family), to train or evaluate a controller on many cases.
 
     jaxsimrl family my_case --out my_family --variants 8 --seed 0 --speed 0.5 1.5 --mesh 0.5 1
 
@@ -19,7 +19,7 @@ from typing import Any
 from foam_bridge import CaseError, OpenFOAMNotFoundError, Variation, build_family, sample_variations
 from jaxsimrl.cli.errors import fail, positive_int, seed_type
 
-#: The range flags: (variation, what it does), in foam_bridge.family.VARIATION_NAMES's order.
+#: The range flags: (variation, what it does), in foam_bridge._family.VARIATION_NAMES's order.
 RANGES = (("speed", "factor on the inlet velocity (and inlet turbulence)"),
           ("angle", "degrees added to the flow angle in the x-y plane (external flows)"),
           ("viscosity", "factor on nu (constant/transportProperties)"),

@@ -1,4 +1,4 @@
-"""``jaxsimrl grid-foam``: the constant-factor grid study on simpleFoam (logic in foam_bridge.grid).
+"""``jaxsimrl grid-foam``: the constant-factor grid study on simpleFoam (logic in foam_bridge._grid).
 
     jaxsimrl grid-foam --alpha-u 0.5 0.7 0.9 --alpha-p 0.5 0.7 0.9 --mesh-scale 0.5 --pool 2 --out runs/grid
 

@@ -1,7 +1,7 @@
-"""train-foam ``--family``: one controller trained on many cases (foam_bridge.family_env).
+"""train-foam ``--family``: one controller trained on many cases (foam_bridge._family_env).
 
 Each case keeps what is its own: criterion, action box (plain SIMPLE's is its own factors' neighbourhood,
-foam_bridge.user_case), algorithm. What one controller needs to act on all of them is shared:
+foam_bridge._user_case), algorithm. What one controller needs to act on all of them is shared:
 
 - the observation leaves out the flow state (its scale is one flow's, and a case may have no inlet) and
   observes the algorithm (1 for SIMPLEC), the residuals of one field per role (velocity, the first

@@ -1,7 +1,7 @@
 """``jaxsimrl train-foam``: PPO on real simpleFoam cases, stepped from the jitted trainer via io_callback.
 
 The same PPO as train-lorenz (jaxsimrl.agents.ppo) on a :class:`jaxsimrl.envs.host.HostVecEnv` over a
-``foam_bridge.batched.BatchedFoamEnv`` of ``--num-envs`` cases on ``--pool`` workers. Defaults are the
+``foam_bridge._batched.BatchedFoamEnv`` of ``--num-envs`` cases on ``--pool`` workers. Defaults are the
 paper's (Pawar & Maulik, "Solver convergence acceleration"): a 2 x 64 tanh MLP, lr 2.5e-4, gamma 1, inlet
 velocity uniform in [35, 65] m/s, actions (alpha_u, alpha_p) in [0.2, 0.95]^2 every 100 iterations, the
 training criterion, 2000 episodes, the built-in backward-facing step (SIMPLEC, k/omega relaxed at 0.8).
@@ -171,7 +171,7 @@ def _interrupt_handler(run: Any, plan: FoamPlan) -> Callable[[int, int], None]:
     """What a Ctrl-C or SIGTERM during an update does, at once (runs.training.interrupts_deferred): end
     the process now, as a kill would. Waiting for the update in flight would let every solver run on
     for the rest of it, hours on a big mesh; instead the workers see their driver gone and kill their
-    solvers within a second (foam_bridge.backends.local), everything on disk is whole, and --resume
+    solvers within a second (foam_bridge._backends.local), everything on disk is whole, and --resume
     redoes the update from the last checkpoint, replaying the episodes in flight. (train_foam stops the
     live bar first.)"""
     def react(count: int, signum: int) -> None:

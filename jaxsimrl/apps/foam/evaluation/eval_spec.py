@@ -25,7 +25,7 @@ Controllers, all in the same run (see foam_controllers):
 With ``reference_iterations`` N, every (geometry, velocity) first gets a reference run: the best
 constant (the tutorial's defaults without one) for exactly N iterations, with no convergence test.
 Every run then reports ``u_error``, the relative L2 distance of the U field it ended with from that
-reference (foam_bridge.fields says why iterations alone can mislead). With ``reference_cache`` the
+reference (foam_bridge._fields says why iterations alone can mislead). With ``reference_cache`` the
 references are reused from (and stored in) a directory (foam_reference_cache).
 
 Every episode's uid is a hash of (controller, geometry, velocity, sample); it seeds the episode's

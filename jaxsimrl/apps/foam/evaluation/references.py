@@ -1,5 +1,5 @@
 """eval-foam's reference runs: per (geometry, velocity) one long run at a constant, and every run's
-final U field measured against it (foam_bridge.fields says why iterations alone can mislead)."""
+final U field measured against it (foam_bridge._fields says why iterations alone can mislead)."""
 
 from __future__ import annotations
 

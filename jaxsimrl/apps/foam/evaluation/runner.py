@@ -1,6 +1,6 @@
 """Run a list of planned episodes (controller, inlet velocity) on a pool of simpleFoam workers.
 
-The pool is foam_bridge's episode pool (:func:`foam_bridge.episodes.run_episodes`): each slot runs
+The pool is foam_bridge's episode pool (:func:`foam_bridge._episodes.run_episodes`): each slot runs
 one episode at a time and takes the next planned one when it ends, all running episodes are stepped
 together, each with the action of its own controller, and each episode's ``log.simpleFoam`` is read
 (linear-solver cost) after its last step. A planned episode is reset with its own inlet velocity

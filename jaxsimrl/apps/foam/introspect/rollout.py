@@ -1,6 +1,6 @@
 """Roll a train-foam policy out on real simpleFoam episodes, one tidy row per step.
 
-The episodes run on foam_bridge's episode pool (:func:`foam_bridge.episodes.run_episodes`: simpleFoam
+The episodes run on foam_bridge's episode pool (:func:`foam_bridge._episodes.run_episodes`: simpleFoam
 workers, one episode per slot, each reset at its own inlet velocity and seeded by its index) with a
 :class:`jaxsimrl.apps.foam.evaluation.controllers.LearnedController` on a :class:`jaxsimrl.policy.BatchActor`:
 the policy's mean action (as eval-foam's learned_deterministic), or a sample keyed by (seed, episode

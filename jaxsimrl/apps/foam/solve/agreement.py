@@ -3,14 +3,14 @@
 Two runs of one case that both met its ``residualControl`` are both "converged", yet they stop at
 different points near the discrete solution: a normalised initial residual below r bounds the last
 change per iteration, not the distance to the solution, and a run that contracts slowly (low factors)
-stops farther from it (foam_bridge.fields). So the question is not "are they equal" but "do they differ
+stops farther from it (foam_bridge._fields). So the question is not "are they equal" but "do they differ
 by more than two runs converged to this criterion at the case's own pace differ". :func:`compare_results`
 answers it for every field the case solves and every function object's final values.
 
 Measures (the other run, the case's own or the constant one, is the reference b; the controller's is a):
 
 - fields: ``||a - b|| / ||b||`` over the internal field, all cells and components (cells unweighted, as
-  foam_bridge.fields.relative_l2); a uniform field is broadcast to the other's cells.
+  foam_bridge._fields.relative_l2); a uniform field is broadcast to the other's cells.
 - function objects: every value (a number, or a vector as a whole, as for the fields) of the rows of the
   final time of each time series under ``postProcessing/`` (forces, coefficients, probes, fieldMinMax,
   surfaceFieldValue...): ``|a - b| / max(|b|, SCALE_FLOOR x the row's largest |value|)``. The floor keeps a

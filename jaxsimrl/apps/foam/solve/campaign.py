@@ -6,7 +6,7 @@ name, made unique: a second ``step`` is ``step-2.solved``), ``campaign.json`` (t
 which directory, so that ``--resume`` finds them again), ``campaign.csv`` and ``campaign.png``
 (jaxsimrl.apps.foam.solve.campaign_table), ``logs/NAME.log`` (each solve's per-step lines).
 
-The pool is foam_bridge.backends' own, the one training runs on, used asynchronously (``submit`` /
+The pool is foam_bridge._backends' own, the one training runs on, used asynchronously (``submit`` /
 ``collect``): each of ``pool`` slots is an "env" whose worker-side object is a :class:`CaseSolver`, and a
 request to it solves one case, so a worker runs one solve at a time and takes the next case when it is
 free. What the pool does for training it does here: a worker that dies, or a Ray actor whose node is
@@ -71,7 +71,7 @@ class CaseJob:
 
 @dataclass(frozen=True)
 class CampaignSettings:
-    """The pool's config (foam_bridge.backends reads these two): ``step_timeout_s`` bounds a worker's
+    """The pool's config (foam_bridge._backends reads these two): ``step_timeout_s`` bounds a worker's
     start (a Ray actor waiting for a CPU); ``request_timeout_s`` a whole solve (CASE_TIMEOUT_S)."""
 
     step_timeout_s: float

@@ -10,7 +10,7 @@ plain ``simpleFoam`` restart of it stops where solve's did.
 A case without residualControl whose controlDict has a ``runTimeControl`` function object that ends the
 run (``satisfiedAction end``, its default) has a criterion of its own: that function object. Its runs
 then have no residual criterion (every field's threshold is NEVER_CONVERGED, so the bridge never
-reports a residual convergence) and end when it says so (foam_bridge.env.CASE_STOP).
+reports a residual convergence) and end when it says so (foam_bridge._env.CASE_STOP).
 """
 
 from __future__ import annotations
@@ -130,7 +130,7 @@ def write_criterion(case: Path, criterion: Mapping[str, float]) -> None:
 def converged_by(run: Any, rescue: Any, criterion_from: str) -> str | None:
     """What ended the run whose fields ``out`` holds as converged (None if it did not converge): the
     controlled ``run`` (the criterion, ``criterion_from``; or the case's own function object,
-    foam_bridge.env.CASE_STOP), or the case's own run ``rescue`` that replaced it."""
+    foam_bridge._env.CASE_STOP), or the case's own run ``rescue`` that replaced it."""
     if rescue is not None:
         return own_converged_by(rescue, criterion_from)
     if run.outcome != "converged":

@@ -1,4 +1,4 @@
-"""``solve --np N``: the case run by N MPI ranks (foam_bridge.parallel has the bridge's side).
+"""``solve --np N``: the case run by N MPI ranks (foam_bridge._parallel has the bridge's side).
 
 What the user gets is what a parallel run of their own leaves after ``reconstructPar``: ``out`` holds the
 reconstructed case (and, with ``keep_decomposed``, the ranks' processor* directories too). A decomposed

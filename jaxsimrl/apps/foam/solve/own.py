@@ -3,7 +3,7 @@
 It is ``solve``'s comparison (``--compare``) and its last line of defence (jaxsimrl.apps.foam.solve.watchdog):
 the result of such a run is exactly the user's own. The run happens in a spawned process (the driver has JAX
 loaded; forking it may deadlock), which dies with the driver (PR_SET_PDEATHSIG), and simpleFoam dies with
-it (foam_bridge.solver.run_to_end starts it so): a killed ``solve`` leaves no solver behind.
+it (foam_bridge._solver.run_to_end starts it so): a killed ``solve`` leaves no solver behind.
 """
 
 from __future__ import annotations

@@ -5,7 +5,7 @@ Both act at the env's step boundaries on what every case has: the initial residu
 fields (the run's *distance* to its criterion, the worst field's ``log10(residual / threshold)``, as the
 watchdog measures it; jaxsimrl.apps.foam.solve.watchdog), never on a learned observation, so they apply to
 plain SIMPLE and SIMPLEC alike, within the box the case's algorithm tolerates
-(foam_bridge.user_case.action_box: SIMPLEC [0.2, 0.95], plain SIMPLE [own / 2, 1.25 own]).
+(foam_bridge._user_case.action_box: SIMPLEC [0.2, 0.95], plain SIMPLE [own / 2, 1.25 own]).
 
 What shaped them, measured on the training tutorials (experiments in benchmarks/RESULTS_solve.md):
 

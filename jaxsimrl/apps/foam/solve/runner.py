@@ -2,7 +2,7 @@
 
 Layout of ``out`` afterwards: the user's case as a normal OpenFOAM case (their system/, constant/, 0/, the
 time directory it started from when a later one, the converged time directory, ``log.simpleFoam``;
-foam_bridge.export), ``solve.json`` and ``solve.png``
+foam_bridge._export), ``solve.json`` and ``solve.png``
 (jaxsimrl.apps.foam.solve.report), and with ``compare`` the comparison runs under ``compare/``. ``solve.json``
 is written first with status "incomplete": a run killed before its end says so; Ctrl-C leaves
 "interrupted"; only a finished run says "complete".
@@ -82,7 +82,7 @@ def solve_case(case: str | Path, out: str | Path, policy: Any = None,
     ``jaxsimrl.load_policy``, or None for the shipped one) into ``out``; see the module docstring. Bad
     input (a missing or decomposed case, a non-empty ``out``, a case the bridge cannot drive, a bad
     policy): one-line ValueError before any result is claimed. ``confirm_alpha_u``: the convergence
-    check's alpha_u (foam_bridge.confirm; "own", the default: the case's own alpha_u, see
+    check's alpha_u (foam_bridge._confirm; "own", the default: the case's own alpha_u, see
     :func:`jaxsimrl.apps.foam.solve.settings.check_factor`; None: no check). ``action_box`` replaces the
     case's own box (experiments only); ``inlet_patch``: the patch whose mean |U|^2 the controller observes
     (None: the case's ``inlet``, if it has one);

@@ -4,7 +4,7 @@ The MDP is the policy's (step interval, observation layout, what the actions mea
 residuals it observes: the case's fields of the same roles, jaxsimrl.apps.foam.solve.fields), everything about
 the case is the case's (its residualControl as the criterion unless ``--residual`` gives one,
 jaxsimrl.apps.foam.solve.criterion; the action box its algorithm tolerates, its turbulence relaxation, its
-inlet, its own iteration budget), and convergence is confirmed at a fixed relaxation (foam_bridge.confirm) so
+inlet, its own iteration budget), and convergence is confirmed at a fixed relaxation (foam_bridge._confirm) so
 that no unconverged field is reported as converged.
 """
 
@@ -123,7 +123,7 @@ def not_applicable(policy_cfg: FoamEnvConfig, settings: CaseSettings,
                    solved: Sequence[str] = (), inlet: str | None = DEFAULT_INLET) -> str | None:
     """Why the controller does not apply to the case (None if it does): its factors were learned for one
     pressure-velocity algorithm and mean something else under the other (SIMPLEC tolerates alpha_p ~0.9,
-    plain SIMPLE needs ~0.3: foam_bridge.user_case), so a controller trained on SIMPLEC is not used on a
+    plain SIMPLE needs ~0.3: foam_bridge._user_case), so a controller trained on SIMPLEC is not used on a
     plain SIMPLE case, nor the reverse; and a controller that observes residuals needs a case field for
     each field it observes (jaxsimrl.apps.foam.solve.fields; ``solved``: the case's CaseInfo.solved_fields);
     and one that observes the flow state, scaled by the inlet's, needs an inlet (``inlet``: the solve's
@@ -183,7 +183,7 @@ def solve_config(case: Path, policy_cfg: FoamEnvConfig, work: Path, max_iteratio
     that needs them (its algorithm observed, its action around the case's own factors) is not given them.
 
     Starting from the check's build is safe: the check builds exactly what the env would (the same
-    copy, mesh and dry run, foam_bridge.base_case.check_case), from this config before the case's own
+    copy, mesh and dry run, foam_bridge._base_case.check_case), from this config before the case's own
     criterion, box and observed fields are applied, and none enters the build (the dry run relaxes with
     the case's own factors, or the box's lower corner, which is the built-in one for a case without own
     factors)."""
@@ -257,7 +257,7 @@ UNRELAXED_CHECK = 0.9
 
 
 def check_factor(settings: CaseSettings) -> float:
-    """The convergence check's alpha_u for a case (foam_bridge.confirm): its own alpha_u, so that a
+    """The convergence check's alpha_u for a case (foam_bridge._confirm): its own alpha_u, so that a
     controlled run is held to exactly the normalisation the case's own criterion reads at the user's own
     factors (a controller that ends at a lower alpha_u than the case's cannot converge by relaxation
     alone, and one at a higher alpha_u was held to a stricter test already); :data:`UNRELAXED_CHECK` when

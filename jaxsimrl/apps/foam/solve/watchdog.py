@@ -4,7 +4,7 @@ A learned controller meets cases it never trained on (other geometries, plain SI
 models), where its factors may stall or blow up a solver that the case's own settings converge. Three
 lines of defence, cheapest first:
 
-1. Actions stay in the box the case's algorithm tolerates (foam_bridge.user_case.case_defaults: the
+1. Actions stay in the box the case's algorithm tolerates (foam_bridge._user_case.case_defaults: the
    paper's box for SIMPLEC, ``[own / 2, 1.25 own]`` for plain SIMPLE); the env clips into it.
 2. This watchdog, at every step boundary (the solver paused, its fields live): it measures the distance to
    convergence, ``d = max over the criterion's fields of log10(residual / threshold)``. It fires on
