@@ -19,7 +19,8 @@ A controller is one of:
 - an object with ``begin(uid)``, ``act(uids, obs, steps) -> actions`` (one row per episode) and
   ``end(uid)`` (:class:`Controller`); it acts once per step for all running episodes that share it; one
   that also has ``observe(uid, step)`` is shown each :class:`StepRecord` of its episodes (a controller
-  that acts on the residuals, not the observation);
+  that acts on the residuals, not the observation), one that has ``started(uid, info)`` each episode's
+  reset info (``jaxsimrl solve`` sizes its observation by the case's inlet speed);
 - a callable ``obs -> action`` (one episode's observation, called per episode);
 - constant factors (a sequence of floats), the same action at every step.
 
@@ -77,7 +78,9 @@ class EpisodeJob:
 @dataclass(frozen=True)
 class StepRecord:
     """One step of an episode: the observation acted on, the action, and what the step returned
-    (reward NaN when the worker could not answer; ``residuals`` are the latest initial residuals)."""
+    (reward NaN when the worker could not answer; ``residuals`` are the latest initial residuals;
+    ``factors`` the factors the env says were in force, None where it did not say). The step ended its
+    episode when ``outcome`` is not ``"running"``."""
 
     obs: np.ndarray
     action: np.ndarray
@@ -85,6 +88,7 @@ class StepRecord:
     iterations: int
     residuals: dict[str, float]
     outcome: str
+    factors: tuple[float, ...] | None = None
 
 
 @dataclass(frozen=True)
@@ -124,11 +128,13 @@ def check_pool(pool: Any) -> int:
 def run_episodes(cfg: FoamEnvConfig, jobs: Sequence[EpisodeJob], pool: int, *,
                  work_dir: str | Path | None = None, prefix: str = "foam_episodes_",
                  keep_temporary: bool = False, on_result: Callable[[EpisodeRun], None] | None = None,
-                 fields: bool = False) -> list[EpisodeRun]:
+                 fields: bool = False, make_env: Callable[[Any, Path, int], Any] | None = None
+                 ) -> list[EpisodeRun]:
     """Run every job on ``min(pool, len(jobs))`` workers with ``cfg``; results come back in job order.
     The env directories go under ``work_dir`` (else ``cfg.work_dir``, else a temporary ``prefix...``
     directory, removed at the end unless ``keep_temporary``); ``on_result`` sees each episode as it
-    ends; ``fields``: keep each run's final U field."""
+    ends; ``fields``: keep each run's final U field; ``make_env``: how each worker builds its env
+    (foam_bridge's backends; None: FoamCaseEnv)."""
     check_pool(pool)
     if not jobs:
         return []
@@ -138,7 +144,7 @@ def run_episodes(cfg: FoamEnvConfig, jobs: Sequence[EpisodeJob], pool: int, *,
     root, temporary = work_root(cfg, work_dir, prefix=prefix)
     results: dict[int, EpisodeRun] = {}
     try:
-        backend = make_backend("local", cfg, slots, slots, root)
+        backend = make_backend("local", cfg, slots, slots, root, make_env=make_env)
         try:
             _Scheduler(backend, root, jobs, results, on_result or (lambda run: None), fields).run(slots)
         finally:
@@ -194,6 +200,8 @@ class _Scheduler:
                 now = time.monotonic()
                 running.reset_s, running.started = now - running.started, now
                 running.controller.begin(running.job.uid)
+                if hasattr(running.controller, "started"):
+                    running.controller.started(running.job.uid, reply.value[1])
             else:
                 if reply.kind in BAD_INPUT_ERRORS:  # every episode would fail alike: stop, say why
                     raise ValueError(reply.error)
@@ -223,8 +231,10 @@ class _Scheduler:
                 self._finish(reply.env_id, "crashed", _cause(reply), None)
                 continue
             obs, reward, terminated, truncated, info = reply.value
+            factors = info.get("factors")
             running.trace.append(StepRecord(running.obs, action, float(reward), int(info["iterations"]),
-                                            dict(info.get("residuals", {})), info["outcome"]))
+                                            dict(info.get("residuals", {})), info["outcome"],
+                                            None if factors is None else tuple(map(float, factors))))
             if hasattr(running.controller, "observe"):
                 running.controller.observe(running.job.uid, running.trace[-1])
             running.obs = np.asarray(obs, np.float32)

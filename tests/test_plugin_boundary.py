@@ -81,6 +81,23 @@ def test_jaxsimrl_uses_foam_bridge_s_public_face_alone() -> None:
     assert deep == [] and unknown == []
 
 
+def _step_requests(tree: ast.AST) -> list[int]:
+    """Lines that build a step request to a solver worker (``Request(env, "step", ...)``, or through a
+    name ``request`` that stands for it)."""
+    return [node.lineno for node in ast.walk(tree) if isinstance(node, ast.Call)
+            and str(getattr(node.func, "id", getattr(node.func, "attr", ""))).lower() == "request"
+            and len(node.args) > 1 and getattr(node.args[1], "value", None) == "step"]
+
+
+def test_jaxsimrl_drives_no_solver_itself() -> None:
+    """solve, eval, grid and rollouts step solvers through foam_bridge's loops (solve: its episode pool),
+    never with a loop of their own: no module of jaxsimrl builds a step request."""
+    assert _step_requests(ast.parse('backend.run([Request(0, "step", {"action": a})])')) == [1]
+    found = {str(path.relative_to(ROOT.parent)): lines for path in sorted(ROOT.rglob("*.py"))
+             if (lines := _step_requests(ast.parse(path.read_text(), str(path))))}
+    assert found == {}
+
+
 def test_foam_bridge_s_internals_are_private_and_its_face_complete() -> None:
     """foamlib's layout: the package's names are its face, every module behind them is ``_name`` (but the
     public module ``foamdict``), and every name of ``__all__`` loads."""

@@ -137,7 +137,8 @@ def converged_by(run: Any, rescue: Any, criterion_from: str) -> str | None:
         return None
     if run.cause.startswith(CASE_STOP):
         return run.cause.replace(CASE_STOP, "the case's function object", 1)
-    return f"{criterion_from}, confirmed" if run.record.get("confirmations") else criterion_from
+    confirmed = run.record is not None and run.record.confirmations
+    return f"{criterion_from}, confirmed" if confirmed else criterion_from
 
 
 def own_converged_by(own: Any, criterion_from: str) -> str | None:

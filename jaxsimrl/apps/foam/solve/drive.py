@@ -1,4 +1,5 @@
-"""The controlled run: one episode of the bridge in a spawned worker, the policy and the watchdog here.
+"""The controlled run: one episode of foam_bridge's episode pool (the loop eval-foam, grid-foam and policy
+rollouts run on) in a spawned worker, the policy and the watchdog here.
 
 The solver runs in foam_bridge's local backend (a spawned worker process: no fork of this JAX-loaded
 process); this process only acts. Every step's factors and residuals, and the watchdog's decision, are
@@ -7,15 +8,25 @@ recorded for the report.
 
 from __future__ import annotations
 
+import math
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
 
-from foam_bridge import BAD_INPUT_ERRORS, FoamEnvConfig, LocalBackend, Request, criterion_distance, factors_of
+from foam_bridge import (
+    EpisodeJob,
+    EpisodeRecord,
+    FoamEnvConfig,
+    StatelessController,
+    StepRecord,
+    criterion_distance,
+    factors_of,
+    run_episodes,
+)
 from jaxsimrl.apps.foam.solve.watchdog import Watchdog, WatchdogSettings
 
 
@@ -26,7 +37,7 @@ class ControlledRun:
     outcome: str = "crashed"
     cause: str = ""
     iterations: int = 0
-    record: dict[str, Any] = field(default_factory=dict)
+    record: EpisodeRecord | None = None
     steps: list[dict[str, Any]] = field(default_factory=list)
     events: list[dict[str, Any]] = field(default_factory=list)
     inlet_speed: float = float("nan")
@@ -77,61 +88,72 @@ def drive(cfg: FoamEnvConfig, actor: Callable[[float], Actor], fallback: list[fl
           watchdog: WatchdogSettings, say: Callable[[str], None],
           make_env: Callable[[Any, Path, int], Any] | None = None,
           on_step: Callable[[ControlledRun], None] | None = None) -> ControlledRun:
-    """Run one episode of ``cfg`` with the actor ``actor(inlet_speed)`` returns (asked for once the worker
-    has built the case, so that loading a policy overlaps that), switching to ``fallback`` when the
-    watchdog fires. Bad input (the env rejects the case): one-line ValueError. ``cfg``'s case must have
-    been checked already (jaxsimrl.apps.foam.solve.settings.solve_config does); ``make_env`` builds the
-    worker's env (jaxsimrl.apps.foam.solve.settings.CheckedCase: from that check's build); ``on_step(run)``
-    after every step but the episode's last (jaxsimrl.apps.foam.solve.live redraws solve.png; the final report
-    draws the last, and a drawing of it here would only delay the report by ~0.4 s)."""
+    """Run one episode of ``cfg`` on foam_bridge's episode pool (one job, one worker) with the actor
+    ``actor(inlet_speed)`` returns (asked for once the worker has built the case, so that loading a policy
+    overlaps that), switching to ``fallback`` when the watchdog fires. Bad input (the env rejects the case):
+    one-line ValueError. ``cfg``'s case must have been checked already
+    (jaxsimrl.apps.foam.solve.settings.solve_config does); ``make_env`` builds the worker's env
+    (jaxsimrl.apps.foam.solve.settings.CheckedCase: from that check's build); ``on_step(run)`` after every
+    step but the episode's last (jaxsimrl.apps.foam.solve.live redraws solve.png; the final report draws the
+    last, and a drawing of it here would only delay the report by ~0.4 s)."""
     run = ControlledRun()
     started = time.monotonic()
-    backend = LocalBackend(cfg, 1, 1, Path(cfg.work_dir), checked=True, make_env=make_env)
-    try:
-        reply = backend.run([Request(0, "reset", {"seed": 0})])[0]
-        if not reply.ok:
-            raise ValueError(reply.error) if reply.kind in BAD_INPUT_ERRORS else RuntimeError(reply.error)
-        obs, info = reply.value
-        run.inlet_speed = float(info.get("inlet_velocity", float("nan")))
-        _loop(backend, Request, cfg, actor(run.inlet_speed), fallback, obs,
-              Watchdog(dict(cfg.convergence), watchdog), run, say, on_step or (lambda run: None))
-    finally:
-        backend.close()
+    steering = _Steering(cfg, actor, fallback, Watchdog(dict(cfg.convergence), watchdog), run, say,
+                         on_step or (lambda run: None))
+    (episode,) = run_episodes(cfg, [EpisodeJob(0, steering, seed=0)], 1, work_dir=cfg.work_dir,
+                              make_env=make_env)
+    if episode.record is None and not episode.trace:  # the reset failed: no episode to report
+        raise RuntimeError(episode.cause or "the worker died")
+    run.outcome, run.cause, run.record = episode.outcome, episode.cause, episode.record
+    if math.isnan(episode.trace[-1].reward):  # the worker could not answer the last step
+        run.steps.append({"from_iteration": run.iterations, "action": steering.sent,
+                          "source": steering.source, "outcome": "crashed"})
     run.wall_time_s = time.monotonic() - started
     return run
 
 
-def _loop(backend: Any, request: Any, cfg: FoamEnvConfig, actor: Actor, fallback: list[float], obs: Any,
-          dog: Watchdog, run: ControlledRun, say: Callable[[str], None],
-          on_step: Callable[[ControlledRun], None]) -> None:
-    residuals = None
-    while True:
-        if dog.fired is None:
-            action, source = actor.act(obs, residuals), "controller"
+class _Steering(StatelessController):
+    """solve's controller on the episode pool: the actor's factors until the watchdog fires, the case's
+    own after; every step recorded in ``run``, said, and shown to ``on_step`` (but the last)."""
+
+    def __init__(self, cfg: FoamEnvConfig, actor: Callable[[float], Actor], fallback: list[float],
+                 dog: Watchdog, run: ControlledRun, say: Callable[[str], None],
+                 on_step: Callable[[ControlledRun], None]) -> None:
+        self.cfg, self.make_actor, self.fallback, self.dog = cfg, actor, fallback, dog
+        self.run, self.say, self.on_step = run, say, on_step
+        self.actor: Actor | None = None
+        self.residuals: Mapping[str, float] | None = None
+        self.source, self.sent = "controller", list(fallback)
+
+    def started(self, uid: int, info: Mapping[str, Any]) -> None:
+        self.run.inlet_speed = float(info.get("inlet_velocity", float("nan")))
+        self.actor = self.make_actor(self.run.inlet_speed)
+
+    def act(self, uids: Sequence[int], obs: np.ndarray, steps: Sequence[int]) -> np.ndarray:
+        if self.dog.fired is None:
+            assert self.actor is not None
+            action, self.source = self.actor.act(obs[0], self.residuals), "controller"
         else:
-            action, source = list(fallback), "own factors (watchdog)"
-        reply = backend.run([request(0, "step", {"action": np.asarray(action)})])[0]
-        factors = factors_of(cfg, action).tolist() if cfg.action_share else action  # what the solver got
-        step = {"from_iteration": run.iterations, "action": factors, "source": source}
-        if not reply.ok:
-            run.outcome, run.cause = "crashed", reply.error or "the worker died"
-            run.steps.append({**step, "outcome": "crashed"})
+            action, self.source = list(self.fallback), "own factors (watchdog)"
+        self.sent = factors_of(self.cfg, action).tolist() if self.cfg.action_share else list(action)
+        return np.asarray([action], np.float64)
+
+    def observe(self, uid: int, step: StepRecord) -> None:
+        """A step that answered (the pool shows no other): record it, say it, watch it."""
+        run = self.run
+        factors = list(step.factors) if step.factors is not None else self.sent  # the env's own word
+        record = {"from_iteration": run.iterations, "action": factors, "source": self.source}
+        run.iterations, self.residuals = step.iterations, step.residuals
+        run.steps.append({**record, "to_iteration": run.iterations, "residuals": step.residuals,
+                          "outcome": step.outcome})
+        self.say(f"  {run.iterations:5d} it  factors {', '.join(f'{a:.3f}' for a in factors)}  "
+                 f"({self.source})  {_residual_text(step.residuals, self.dog.criterion)}")
+        if step.outcome != "running":
             return
-        obs, _, terminated, truncated, info = reply.value
-        factors = info.get("factors", factors)  # the env's own word (FoamEnvConfig.freeze_decades holds)
-        step["action"] = factors
-        run.iterations, run.outcome = int(info["iterations"]), info["outcome"]
-        run.cause, residuals = info.get("cause", ""), info["residuals"]
-        run.steps.append({**step, "to_iteration": run.iterations, "residuals": residuals,
-                          "outcome": run.outcome})
-        say(f"  {run.iterations:5d} it  factors {', '.join(f'{a:.3f}' for a in factors)}  ({source})  "
-            f"{_residual_text(residuals, dog.criterion)}")
-        if terminated or truncated:
-            run.record = dict(info.get("episode") or {})
-            return
-        on_step(run)  # not after the last step: the caller's report follows at once
-        reason = dog.check(residuals)
+        run.outcome = step.outcome
+        self.on_step(run)  # not after the last step: the caller's report follows at once
+        reason = self.dog.check(step.residuals)
         if reason:
             run.events.append({"kind": "watchdog", "at_iteration": run.iterations, "reason": reason,
-                               "then": f"the case's own factors {fallback} from the live fields"})
-            say(f"  watchdog at {run.iterations}: {reason}; the case's own factors from here")
+                               "then": f"the case's own factors {self.fallback} from the live fields"})
+            self.say(f"  watchdog at {run.iterations}: {reason}; the case's own factors from here")

@@ -120,9 +120,9 @@ def build_report(case: Path, out: Path, controller: Any, cfg: Any, run: Any, res
     if log.is_file():
         parser.feed(log.read_bytes())
         parser.finish()
-    record = run.record
-    busy = float(record.get("wall_time_s", run.wall_time_s)) - float(record.get("solver_idle_s", 0.0))
-    cpu = float(record.get("solver_time_s", parser.execution_time))
+    record = run.record  # foam_bridge's EpisodeRecord; None when the episode could not report one
+    busy = run.wall_time_s if record is None else float(record.wall_time_s) - float(record.solver_idle_s)
+    cpu = parser.execution_time if record is None else float(record.solver_time_s)
     iterations = run.iterations
     if rescue is not None:
         busy, cpu = busy + rescue.wall_time_s, cpu + rescue.cpu_time_s
@@ -143,7 +143,7 @@ def build_report(case: Path, out: Path, controller: Any, cfg: Any, run: Any, res
                          "interval": cfg.interval, "max_iterations": cfg.max_iterations,
                          "observed_fields": observed},
             "result": result, "fallback": run.events, "steps": run.steps,
-            "confirmations": record.get("confirmations", []),
+            "confirmations": (record.confirmations if record is not None else None) or [],
             "residuals": {"controlled": residual_history(parser.history, fields)}}
     if rescue is not None:
         data["residuals"]["fallback_rerun"] = residual_history(rescue.history, fields)
