@@ -13,7 +13,7 @@ import json
 import sys
 from pathlib import Path
 
-from foam_bridge import FoamCaseEnv, FoamEnvConfig, shares_of
+from foam_bridge import ConstantFactors, EpisodeJob, FoamEnvConfig, run_episodes, shares_of
 
 RUN = Path("experiments/controller/family-v5")
 TRIPLES = ((0.9, 1.0, 0.9), (0.95, 0.95, 0.95), (0.95, 1.0, 0.95), (0.98, 1.0, 0.98))
@@ -24,21 +24,12 @@ def main() -> None:
     base = FoamEnvConfig.from_json(json.loads((RUN / "config.json").read_text())["family"][case])
     cfg = dataclasses.replace(base, freeze_decades=None, action_low=(0.2, 0.2, 0.2),
                               action_high=(0.99, 1.0, 0.99), action_pivot=None)
-    rows = []
-    for triple in TRIPLES:
-        env = FoamCaseEnv(cfg, work_dir=Path(f"/tmp/simplec-top-{case}"))
-        try:
-            env.reset(seed=0)
-            share = shares_of(cfg, list(triple))
-            done, info = False, {}
-            while not done:
-                _, _, terminated, truncated, info = env.step(share)
-                done = terminated or truncated
-        finally:
-            env.close()
-        rows.append({"case": case, "factors": list(triple), "iterations": info["iterations"],
-                     "outcome": info["outcome"], "cause": info["cause"], "budget": cfg.max_iterations})
-        print(rows[-1], flush=True)
+    jobs = [EpisodeJob(k, ConstantFactors(shares_of(cfg, list(triple))), seed=0)
+            for k, triple in enumerate(TRIPLES)]
+    rows = [{"case": case, "factors": list(triple), "iterations": run.iterations, "outcome": run.outcome,
+             "cause": run.cause, "budget": cfg.max_iterations}
+            for triple, run in zip(TRIPLES, run_episodes(cfg, jobs, 1, work_dir=f"/tmp/simplec-top-{case}"),
+                                   strict=True)]
     out.write_text(json.dumps(rows, indent=1) + "\n")
 
 
