@@ -16,7 +16,9 @@ import pytest
 import foam_bridge
 import jaxsimrl.plugin as plugin
 from foam_bridge._env import FAILURES
+from foam_bridge._standin import Profile, StandIn
 from jaxsimrl.cli.main import build_parser
+from jaxsimrl.envs.protocol import AsyncHostBatch, HostBatch
 from jaxsimrl.policy.spec import env_spec
 
 ROOT = Path(__file__).resolve().parents[1] / "jaxsimrl"
@@ -156,3 +158,19 @@ def test_a_new_application_plugs_in_through_an_entry_point(tmp_path: Path, monke
     finally:
         plugin.applications.cache_clear()
         sys.modules.pop("toyapp", None)
+
+
+def test_the_foam_batches_implement_the_core_s_host_contracts() -> None:
+    """The trainer's two host adapters drive an application's batch through jaxsimrl.envs.protocol's
+    HostBatch and AsyncHostBatch: the OpenFOAM batches have every member (on the stand-in solver)."""
+    fast = StandIn(Profile(iterations=(150,), seconds_per_iteration=(1e-4,), reset_s=0.001))
+    lock_step = foam_bridge.BatchedFoamEnv(foam_bridge.FoamEnvConfig(mesh_scale=0.5), num_envs=2, pool=1,
+                                           seed=0, make_env=fast)
+    asynchronous = foam_bridge.AsyncFoamEnv(foam_bridge.FoamEnvConfig(mesh_scale=0.5), num_envs=2,
+                                            batch_size=1, pool=1, seed=0, make_env=fast)
+    try:
+        assert isinstance(lock_step, HostBatch) and not isinstance(lock_step, AsyncHostBatch)
+        assert isinstance(asynchronous, AsyncHostBatch)
+    finally:
+        lock_step.close()
+        asynchronous.close()

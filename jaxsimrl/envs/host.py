@@ -18,9 +18,8 @@ touching the batch, and the driver raises it as one line once the call has retur
 (:meth:`HostVecEnv.raise_if_failed`), before anything of that call is saved. The callback calls no JAX
 (a callback that dispatches JAX work can deadlock the CPU client).
 
-The host batch needs: ``num_envs``, ``observation_spec`` and ``action_spec`` (BoxSpec-like: low, high,
-shape), ``reset(seed=int) -> (obs, infos)`` and ``step(actions) -> (obs, reward, terminated, truncated,
-infos)``; an application's batch of solver cases on a pool is one.
+The batch is a :class:`jaxsimrl.envs.protocol.HostBatch`: an application's batch of solver cases on a pool
+(the OpenFOAM application's BatchedFoamEnv is one).
 """
 
 from __future__ import annotations
@@ -34,7 +33,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax.experimental import io_callback
 
-from jaxsimrl.envs.protocol import BoxSpec
+from jaxsimrl.envs.protocol import BoxSpec, HostBatch
 from jaxsimrl.envs.vec import VecStep
 
 EpisodeHook = Callable[[int, dict[str, Any]], None]
@@ -77,7 +76,7 @@ class HostVecEnv:
 
     single_device = True
 
-    def __init__(self, batch: Any, on_episode: EpisodeHook | None = None) -> None:
+    def __init__(self, batch: HostBatch, on_episode: EpisodeHook | None = None) -> None:
         self.batch = batch
         self.num_envs = int(batch.num_envs)
         self.obs_dim = int(np.prod(batch.observation_spec.shape))

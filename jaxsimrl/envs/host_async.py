@@ -29,15 +29,16 @@ from typing import Any
 import numpy as np
 
 from jaxsimrl.envs.host import EpisodeHook, HostVecEnv
+from jaxsimrl.envs.protocol import AsyncHostBatch
 from jaxsimrl.envs.vec import VecStep
 
 
 class AsyncHostVecEnv(HostVecEnv):
     """An asynchronous host batch behind one io_callback per learner step (see the module docstring).
-    ``batch`` needs ``num_envs`` (all its envs), ``batch_size`` (the rows of a recv), the specs,
-    ``async_reset(seed)``, ``recv()`` and ``send(actions, ids)``, as an asynchronous host batch has them."""
+    ``batch`` is a :class:`jaxsimrl.envs.protocol.AsyncHostBatch` (``num_envs``: all its envs,
+    ``batch_size``: the rows of a recv)."""
 
-    def __init__(self, batch: Any, on_episode: EpisodeHook | None = None) -> None:
+    def __init__(self, batch: AsyncHostBatch, on_episode: EpisodeHook | None = None) -> None:
         super().__init__(batch, on_episode)
         self.async_envs = int(batch.num_envs)
         self.num_envs = int(batch.batch_size)  # the learner's batch: the rows of every call
