@@ -283,7 +283,7 @@ def test_two_slots_freed_in_one_step_with_one_cell_left_start_only_that_cell(mon
     from foam_bridge._grid import run_grid
 
     pool = _ScriptedPool()
-    monkeypatch.setattr(episodes, "make_backend", lambda *args: pool)
+    monkeypatch.setattr(episodes, "make_backend", lambda *args, **kwargs: pool)
     # three cells on two slots: raised IndexError when both slots ended at once
     cells = run_grid(FoamEnvConfig(), [0.9, 0.8, 0.7], [0.9], pool=2, work_dir=tmp_path)
     assert [(c.alpha_u, c.iterations, c.outcome, c.wall_time_s) for c in cells] == [

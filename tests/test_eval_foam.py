@@ -215,7 +215,7 @@ def _scripted(monkeypatch, backend, lengths, pool):
     from jaxsimrl.apps.foam.evaluation import runner as foam_runner
     from jaxsimrl.apps.foam.evaluation.controllers import ConstantController
 
-    monkeypatch.setattr(episodes, "make_backend", lambda *args: backend)
+    monkeypatch.setattr(episodes, "make_backend", lambda *args, **kwargs: backend)
     jobs = [foam_runner.Job(uid, "c", "h", 50.0, 0) for uid in range(len(lengths))]
     return foam_runner.run_episodes(FoamEnvConfig(), jobs, {"c": ConstantController("c", (0.9, 0.8))}, pool)
 
