@@ -47,12 +47,14 @@ def test_a_pivot_puts_the_case_s_own_factors_at_one_half() -> None:
         FoamEnvConfig(action_low=(0.2, 0.2), action_high=(0.95, 0.95), action_pivot=(0.9, 1.0)).validate()
 
 
-def test_around_own_pivots_plain_simple_at_its_own_and_simplec_at_its_top() -> None:
+def test_around_own_pivots_each_algorithm_at_its_family_constant_inside_the_case_s_box() -> None:
     template = FoamEnvConfig(action_low=(0.35, 0.15, 0.35), action_high=(0.875, 0.375, 0.875),
                              relax_k_omega="action", action_share=True)
     plain = around_own(template, CaseSettings((0.7, 0.3, 0.7), False, None, "SIMPLE")).validate()
-    assert plain.action_pivot == (0.7, 0.3, 0.7)
-    assert factors_of(plain, [0.5] * 3) == pytest.approx([0.7, 0.3, 0.7])
+    assert plain.action_low == template.action_low and plain.action_high == template.action_high
+    assert plain.action_pivot == (0.8, 0.3, 0.875)  # (0.8, 0.3, 0.9), the turbulence clipped to the box
+    assert factors_of(plain, [0.5] * 3) == pytest.approx([0.8, 0.3, 0.875])
+    assert factors_of(plain, [0.0] * 3) == pytest.approx([0.35, 0.15, 0.35])
     simplec = around_own(template, CaseSettings((0.9, None, 0.9), False, None, "SIMPLEC")).validate()
     assert simplec.action_high == (0.95, 1.0, 0.95) and simplec.action_pivot == simplec.action_high
     assert simplec.action_low == (0.9, 0.5, 0.5)  # never below its own alpha_u

@@ -7,9 +7,9 @@ foam_bridge._user_case), algorithm. What one controller needs to act on all of t
   observes the algorithm (1 for SIMPLEC), the residuals of one field per role (velocity, the first
   turbulence field, pressure: jaxsimrl.apps.foam.solve.fields), progress and the factors in force;
 - the action is a share of each case's box (``action_share``), three factors (U, p, turbulence), with
-  share 0.5 at ``action_pivot`` (jaxsimrl.apps.foam.solve.settings.around_own): a plain-SIMPLE case's own
-  factors, a SIMPLEC case's box top (its alpha_u never below its own), so the initial policy's mean is
-  where the residual rule starts each algorithm;
+  share 0.5 at ``action_pivot`` (jaxsimrl.apps.foam.solve.settings.around_own): the training family's
+  constant for the case's algorithm, clipped into its box (a SIMPLEC case's alpha_u never below its own),
+  so the initial policy starts where a user who copied that constant would;
 - the reward is scaled per case by 100 / the iterations of the case's own settings, so that a case ten
   times longer than another does not outweigh it tenfold; and each case's budget is
   ``BUDGET_FACTOR`` x those iterations (a bad episode costs a bounded multiple of a good one), or the
