@@ -16,7 +16,14 @@ from foam_marks import needs_openfoam
 from test_solve import _coarse_step, _marked_processes
 
 from jaxsimrl.apps.foam.solve import solve_case
-from jaxsimrl.apps.foam.solve.rules import GROWTH_DECADES, RAISE_SHARE, Bandit, ResidualRule, RulePolicy
+from jaxsimrl.apps.foam.solve.rules import (
+    GROWTH_DECADES,
+    RAISE_SHARE,
+    Bandit,
+    RandomFactors,
+    ResidualRule,
+    RulePolicy,
+)
 from jaxsimrl.apps.foam.solve.settings import CaseSettings, check_factor
 from jaxsimrl.apps.foam.solve.watchdog import WatchdogSettings
 
@@ -68,14 +75,26 @@ def test_the_bandit_tries_its_arms_upward_drops_an_arm_that_grew_and_plays_the_b
     assert bandit._pulls[1] > 3 * bandit._pulls[0] and bandit._pulls[2] == 1
 
 
-@pytest.mark.parametrize("rule_type", [ResidualRule, Bandit])
+@pytest.mark.parametrize("rule_type", [ResidualRule, Bandit, RandomFactors])
 @pytest.mark.parametrize("simplec", [False, True])
 def test_a_rule_never_leaves_its_box(rule_type: type, simplec: bool) -> None:
     rule, rng = rule_type(CRITERION, (1.0, 0.9, 1.0), LOW, HIGH, simplec), random.Random(0)
     actions = [rule.act(None, None)]  # own factors above the box: clipped
     actions += [rule.act(None, _residuals(rng.uniform(-1, 4))) for _ in range(200)]
     assert all(lo <= a <= hi for action in actions for a, lo, hi in zip(action, LOW, HIGH, strict=True))
-    assert actions[0] == list(HIGH)
+    assert actions[0] == list(HIGH) or rule_type is RandomFactors
+
+
+def test_the_random_baseline_draws_anew_each_step_the_same_for_every_run_and_holds_near_the_criterion():
+    first, second = (RandomFactors(CRITERION, OWN, LOW, HIGH) for _ in range(2))
+    distances = [3.0, 2.5, 2.0, 1.5, 0.5, 0.4]
+    draws = [[rule.act(None, None if d is None else _residuals(d)) for d in [None, *distances]]
+             for rule in (first, second)]
+    assert draws[0] == draws[1]  # seeded: every run and case draws the same
+    assert draws[0][1] == draws[0][0]  # the first step's start-up transient judges nothing, as for the rules
+    assert len({tuple(a) for a in draws[0][1:5]}) == 4  # then a new draw each step far from the criterion
+    assert draws[0][5] == draws[0][4] == draws[0][6]  # held within FREEZE_DECADES
+    assert RulePolicy("random").provenance()["seed"] == 0
 
 
 @pytest.mark.parametrize(("own", "check"), [(0.7, 0.7), (0.95, 0.95), (None, 0.9), (1.0, 0.9)])

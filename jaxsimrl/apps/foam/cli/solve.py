@@ -40,11 +40,13 @@ def register(subparsers: Any) -> None:
                         "(default: ./NAME.solved, NAME the case directory's name)")
     parser.add_argument("--policy", metavar="RUN_DIR", help="a train-foam run directory (default: the "
                         "shipped controller)")
-    parser.add_argument("--controller", choices=("learned", "residual-rule", "bandit"), default="learned",
+    parser.add_argument("--controller", choices=("learned", "residual-rule", "bandit", "random"),
+                        default="learned",
                         help="learned: the shipped controller or --policy (default). No training, on plain "
                         "SIMPLE and SIMPLEC cases alike: residual-rule raises the factors while the "
                         "residuals fall and goes back when they grow; bandit tries factors from the "
-                        "case's own to its box's top and plays the one that gains most")
+                        "case's own to its box's top and plays the one that gains most; random draws "
+                        "them in the box at every step (a baseline)")
     parser.add_argument("--compare", action="store_true", help="also run the case with its own settings, "
                         "in parallel, and report the savings")
     parser.add_argument("--compare-constant", type=relaxation_factor, nargs="+", metavar="F",

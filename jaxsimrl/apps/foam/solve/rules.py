@@ -30,6 +30,7 @@ What shaped them, measured on the training tutorials (experiments in benchmarks/
 - :class:`Bandit` (UCB1, after Khodak et al. 2024, who tune a solver's settings online inside one run):
   arms from the case's own factors to its box's top, one a step, rewarded by the decades gained per 100
   iterations.
+- :class:`RandomFactors`: uniform factors in the box at every step (seeded), the floor of the baselines.
 
 Their constants are module-level and chosen on the controller issue's training cases (the built-in step
 and OpenFOAM's pitzDaily, pitzDailyExptInlet, airFoil2D, backwardFacingStep2D and T3A) only.
@@ -39,6 +40,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import random
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -46,7 +48,7 @@ from typing import Any
 from foam_bridge import K_OMEGA_ACTION, FoamEnvConfig
 from jaxsimrl.apps.foam.solve.watchdog import Watchdog, WatchdogSettings
 
-__all__ = ["INTERVALS", "RULES", "Bandit", "ResidualRule", "RulePolicy"]
+__all__ = ["INTERVALS", "RULES", "Bandit", "RandomFactors", "ResidualRule", "RulePolicy"]
 
 #: Iterations between two decisions of the residual rule. 50 leaves 4-6 decisions on a 200-300-iteration
 #: case (pitzDaily, T3A) and outlasts the jump a change of factors makes (~25 iterations): with steps of
@@ -189,9 +191,30 @@ class Bandit(_Rule):
         return max(range(self._arms), key=scores.__getitem__)
 
 
+@dataclass
+class RandomFactors(_Rule):
+    """Factors drawn uniformly in the case's box at every step, the first step's too, from a stream seeded
+    by RANDOM_SEED: the floor any controller must clear (issue 35's "random" baseline). Run as the rules
+    are (held within FREEZE_DECADES of the criterion, under solve's watchdog), so that it differs from
+    them only in what it decides."""
+
+    _stream: random.Random = field(default_factory=lambda: random.Random(RANDOM_SEED))
+
+    def start(self) -> list[float]:
+        return self._draw()
+
+    def decide(self, now: float, gain: float) -> list[float]:
+        return self._draw()
+
+    def _draw(self) -> list[float]:
+        return [self._stream.uniform(lo, hi) for lo, hi in zip(self.low, self.high, strict=True)]
+
+
+#: The random baseline's seed: the same draws for every case and every run.
+RANDOM_SEED = 0
 #: The rules solve offers (``--controller NAME``), and the step length each decides at.
-RULES: dict[str, type[_Rule]] = {"residual-rule": ResidualRule, "bandit": Bandit}
-INTERVALS = {"residual-rule": RULE_INTERVAL, "bandit": BANDIT_INTERVAL}
+RULES: dict[str, type[_Rule]] = {"residual-rule": ResidualRule, "bandit": Bandit, "random": RandomFactors}
+INTERVALS = {"residual-rule": RULE_INTERVAL, "bandit": BANDIT_INTERVAL, "random": RULE_INTERVAL}
 
 
 @dataclass(frozen=True)
@@ -215,7 +238,8 @@ class RulePolicy:
         """What solve.json records of the rule: its name, step length and constants."""
         constants = {"noise_decades": NOISE_DECADES, "growth_decades": GROWTH_DECADES,
                      "freeze_decades": FREEZE_DECADES}
-        constants.update({"raise_share": RAISE_SHARE} if self.name == "residual-rule" else {"arms": ARMS})
+        constants.update({"residual-rule": {"raise_share": RAISE_SHARE}, "bandit": {"arms": ARMS},
+                          "random": {"seed": RANDOM_SEED}}[self.name])
         return {"rule": self.name, "interval": INTERVALS[self.name], **constants,
                 "about": "no training: jaxsimrl.apps.foam.solve.rules"}
 
