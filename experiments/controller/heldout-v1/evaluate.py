@@ -59,8 +59,10 @@ def _solved(data: dict, controller: str, case: str) -> dict:
 
 def _compared(data: dict, name: str, controller: str, case: str) -> dict:
     other = data["compare"][name]
+    agreement = other.get("agreement", {})
     return {"case": case, "controller": controller, "converged": other["converged"],
-            "iterations": other["iterations"], "wall_s": round(other["wall_time_s"], 2)}
+            "iterations": other["iterations"], "wall_s": round(other["wall_time_s"], 2),
+            "agrees_with_learned": agreement.get("agree"), "agreement_reason": agreement.get("reason")}
 
 
 def evaluate_case(case: Path, policy: object, scratch: Path, done: set[str]) -> list[dict]:
