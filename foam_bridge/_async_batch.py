@@ -149,23 +149,25 @@ class AsyncFoamEnv(FoamBatchCore):
         requests = []
         for env_id, action in zip(ids, actions, strict=True):
             if self._tallies[env_id].reset_failure:  # no episode to step: retry its reset
-                requests.append(self._reset_request(env_id, ("retry", action)))
+                requests.append(self._sent_reset(env_id, ("retry", action)))
             elif (lost := self._stranded(env_id)) is not None:  # it ends as if the step had been sent
                 requests += self._stepped(lost, action)
             else:
-                requests.append(self._step_request(env_id, action))
+                requests.append(self._sent_step(env_id, action))
         self.backend.submit(requests)
 
     # ----- the pool's side ---------------------------------------------------------------------
-    def _step_request(self, env_id: int, action: np.ndarray) -> Request:
+    def _sent_step(self, env_id: int, action: np.ndarray) -> Request:
+        """A step of ``env_id`` (FoamBatchCore's request), in flight."""
         self._in_flight[env_id] = ("step", action)
-        return Request(env_id, "step", {"action": action})
+        return self._step_request(env_id, action)
 
-    def _reset_request(self, env_id: int, context: Any, seed: int | None = None) -> Request:
-        """A background reset of ``env_id``; ``context`` says what to do with its reply."""
+    def _sent_reset(self, env_id: int, context: Any, seed: int | None = None) -> Request:
+        """A background reset of ``env_id`` (FoamBatchCore's request), in flight; ``context`` says what to
+        do with its reply."""
         seed = self._episode_seed(env_id) if seed is None else seed
         self._in_flight[env_id] = ("reset", (context, seed))
-        return Request(env_id, "reset", {"seed": seed, "options": None})
+        return self._reset_request(env_id, seed)
 
     def _absorb(self, replies: list[Reply]) -> None:
         """Turn replies into ready results, or into the resets they call for (submitted at once)."""
@@ -193,13 +195,13 @@ class AsyncFoamEnv(FoamBatchCore):
             info["episode"].setdefault("node", self._tallies[env_id].node)
         ended = _Ready(obs, reward, terminated, truncated, [{"final_obs": obs, "final_info": info}, info])
         self._retried.discard(env_id)
-        return self._reset_request(env_id, ("ended", ended))
+        return self._sent_reset(env_id, ("ended", ended))
 
     def _was_reset(self, reply: Reply, context: tuple[str, Any], seed: int) -> list[Request]:
         env_id = reply.env_id
         if not reply.ok and reply.worker_died and env_id not in self._retried:  # one more try, same seed
             self._retried.add(env_id)
-            return [self._reset_request(env_id, context, seed)]
+            return [self._sent_reset(env_id, context, seed)]
         self._retried.discard(env_id)
         kind, payload = context
         stale = self._tallies[env_id].obs
@@ -292,8 +294,8 @@ class AsyncFoamEnv(FoamBatchCore):
     def _resend(self, env_id: int, entry: dict[str, Any]) -> Request:
         """The request env ``env_id`` had in flight at the snapshot, in flight again."""
         if "step" in entry:
-            return self._step_request(env_id, np.asarray(entry["step"], np.float64))
+            return self._sent_step(env_id, np.asarray(entry["step"], np.float64))
         reset = entry["reset"]
         payload = (_Ready.from_json(reset["payload"]) if reset["kind"] == "ended"
                    else np.asarray(reset["payload"], np.float64))
-        return self._reset_request(env_id, (reset["kind"], payload), int(reset["seed"]))
+        return self._sent_reset(env_id, (reset["kind"], payload), int(reset["seed"]))

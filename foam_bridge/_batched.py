@@ -163,16 +163,27 @@ class FoamBatchCore(EpisodeReplay):
     def _reset_envs(
         self, env_ids: list[int], options: dict[str, Any] | None = None
     ) -> tuple[dict[int, tuple], dict[int, Reply]]:
-        """Reset some envs in parallel; a worker that dies during reset gets one more try.
+        """Reset some envs in parallel, each with the next seed of its stream and ``options``."""
+        return self.run_resets({i: self._episode_seed(i) for i in env_ids}, dict.fromkeys(env_ids, options))
 
-        Returns (env -> (obs, info) of the reset ones, env -> the failed Reply of the others).
-        """
-        seeds = {i: self._episode_seed(i) for i in env_ids}
+    # ----- the one place that drives solvers: every front-end's resets and steps go through here ------
+    def _reset_request(self, env_id: int, seed: int, options: dict[str, Any] | None = None) -> Request:
+        return Request(env_id, "reset", {"seed": seed, "options": options})
+
+    def _step_request(self, env_id: int, action: np.ndarray) -> Request:
+        return Request(env_id, "step", {"action": action})
+
+    def run_resets(
+        self, seeds: dict[int, int], options: dict[int, dict[str, Any] | None]
+    ) -> tuple[dict[int, tuple], dict[int, Reply]]:
+        """Reset the envs of ``seeds`` in parallel, each with its seed and options; a worker that dies
+        during a reset gets one more try. Returns (env -> (obs, info) of the reset ones, env -> the failed
+        Reply of the others)."""
         results: dict[int, tuple] = {}
         failures: dict[int, Reply] = {}
-        pending = list(env_ids)
+        pending = list(seeds)
         for attempt in range(2):
-            requests = [Request(i, "reset", {"seed": seeds[i], "options": options}) for i in pending]
+            requests = [self._reset_request(i, seeds[i], options.get(i)) for i in pending]
             pending = []
             for reply in self.backend.run(requests):
                 if reply.ok:
@@ -184,6 +195,15 @@ class FoamBatchCore(EpisodeReplay):
             if not pending:
                 break
         return results, failures
+
+    def run_steps(self, actions: dict[int, np.ndarray]) -> tuple[dict[int, tuple], set[int]]:
+        """Step the envs of ``actions`` in parallel. Returns (env -> its step result, the envs the
+        solver's side could not answer: their result is :meth:`_failed_step`'s, a crashed episode)."""
+        lost = {i: reply for i in actions if (reply := self._stranded(i)) is not None}
+        replies = self.backend.run([self._step_request(i, a) for i, a in actions.items() if i not in lost])
+        replies += lost.values()
+        results = {reply.env_id: self._step_result(reply, actions[reply.env_id]) for reply in replies}
+        return results, {reply.env_id for reply in replies if not reply.ok}
 
     def _start_tally(self, env_id: int, seed: int, obs: Any, info: dict[str, Any]) -> tuple[np.ndarray, dict]:
         self.backend.stranded.pop(env_id, None)  # a new episode on the worker it lives on now
@@ -312,11 +332,7 @@ class BatchedFoamEnv(FoamBatchCore):
             raise ValueError(f"actions: expected finite ({names}), got {actions.tolist()}")
         restarted, unstarted = self._retry_resets()
         runnable = [i for i in range(self.num_envs) if i not in unstarted and i not in restarted]
-        lost = {i: reply for i in runnable if (reply := self._stranded(i)) is not None}
-        sent = [i for i in runnable if i not in lost]
-        replies = self.backend.run([Request(i, "step", {"action": actions[i]}) for i in sent])
-        replies += lost.values()
-        results = {reply.env_id: self._step_result(reply, actions[reply.env_id]) for reply in replies}
+        results, _ = self.run_steps({i: actions[i] for i in runnable})
         for i, cause in unstarted.items():  # no episode to step: a failed one of 0 iterations
             self._tallies[i] = _Tally(self._tallies[i].obs)
             results[i] = self._failed_step(self._tallies[i], actions[i], cause)

@@ -4,12 +4,14 @@ rollouts (jaxsimrl) run on it.
 
 Each pool slot runs one episode at a time and takes the next job of the queue when its episode ends;
 all running episodes are stepped together (one batch per step, in parallel over the workers), each
-with the action of its own controller. It drives foam_bridge's local backend directly rather than
-through BatchedFoamEnv because:
+with the action of its own controller. The slots are the envs of a FoamBatchCore
+(foam_bridge._batched), the one place where foam_bridge sends resets and steps to solvers, which the
+lock-step and asynchronous training batches and their replay drive too; the pool is its third
+front-end, beside them rather than one of them, because:
 
-- each job is reset with its own seed and options (e.g. ``{"inlet_velocity": v}``), where
-  BatchedFoamEnv's auto-reset draws them from the config;
-- a slot whose episode has ended is not stepped again (BatchedFoamEnv steps every env every time, so a
+- each job is reset with its own seed and options (e.g. ``{"inlet_velocity": v}``), where the training
+  batches' auto-reset draws them from the config and the env's seed stream;
+- a slot whose episode has ended is not stepped again (a training batch steps every env it holds, so a
   finished slot would run a wasted episode while the last ones finish);
 - the episode's ``log.simpleFoam`` (its linear-solver cost) and, if asked, its final U field are read
   after its last step and before its slot is reset, which deletes the episode's case directory.
@@ -25,8 +27,9 @@ A controller is one of:
 - constant factors (a sequence of floats), the same action at every step.
 
 Failures are outcomes: a crashed, diverged or hung solver ends its episode with that outcome and cause,
-a dead worker with outcome "crashed" and :data:`WORKER_DIED`; the other jobs go on. A config or case the
-env rejects (every episode would fail alike) raises a one-line ValueError.
+a dead worker with outcome "crashed" and :data:`WORKER_DIED` (and the batch core's record of the
+episode as far as it got; the step it could not answer has reward NaN); the other jobs go on. A config
+or case the env rejects (every episode would fail alike) raises a one-line ValueError.
 """
 
 from __future__ import annotations
@@ -42,7 +45,8 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from foam_bridge._backends import BAD_INPUT_ERRORS, WORKER_DIED, Reply, Request, env_dir, make_backend
+from foam_bridge._backends import BAD_INPUT_ERRORS, WORKER_DIED, env_dir
+from foam_bridge._batched import FoamBatchCore
 from foam_bridge._config import FoamEnvConfig, work_root
 from foam_bridge._env import EPISODE_DIR
 from foam_bridge._fields import final_field
@@ -144,11 +148,8 @@ def run_episodes(cfg: FoamEnvConfig, jobs: Sequence[EpisodeJob], pool: int, *,
     root, temporary = work_root(cfg, work_dir, prefix=prefix)
     results: dict[int, EpisodeRun] = {}
     try:
-        backend = make_backend("local", cfg, slots, slots, root, make_env=make_env)
-        try:
-            _Scheduler(backend, root, jobs, results, on_result or (lambda run: None), fields).run(slots)
-        finally:
-            backend.close()
+        with FoamBatchCore(cfg, slots, pool=slots, work_dir=root, make_env=make_env) as batch:
+            _Scheduler(batch, root, jobs, results, on_result or (lambda run: None), fields).run(slots)
     finally:
         if temporary and not keep_temporary:
             shutil.rmtree(root, ignore_errors=True)
@@ -168,11 +169,15 @@ class _Running:
 
 
 class _Scheduler:
-    """Keeps every slot busy: reset where an episode ended, then step all running episodes together."""
+    """Keeps every slot busy: reset where an episode ended, then step all running episodes together, on
+    the batch core that every foam batch drives its solvers through (foam_bridge._batched.FoamBatchCore,
+    one env per slot: its resets with each job's own seed and options, its steps only for the slots that
+    run an episode, its fault handling)."""
 
-    def __init__(self, backend: Any, root: Path, jobs: Sequence[EpisodeJob], results: dict[int, EpisodeRun],
-                 on_result: Callable[[EpisodeRun], None], fields: bool) -> None:
-        self.backend, self.root, self.results = backend, root, results
+    def __init__(self, batch: FoamBatchCore, root: Path, jobs: Sequence[EpisodeJob],
+                 results: dict[int, EpisodeRun], on_result: Callable[[EpisodeRun], None],
+                 fields: bool) -> None:
+        self.batch, self.root, self.results = batch, root, results
         self.on_result, self.fields = on_result, fields
         self.controllers = _controllers(jobs)
         self.queue = deque(jobs)
@@ -190,22 +195,21 @@ class _Scheduler:
                 self._step(self._actions())
 
     def _reset(self, slots: list[int]) -> None:
-        jobs = [self.active[s].job for s in slots]
-        requests = [Request(s, "reset", {"seed": job.seed, "options": job.options})
-                    for s, job in zip(slots, jobs, strict=True)]
-        for reply in self.backend.run(requests):
-            running = self.active[reply.env_id]
-            if reply.ok:
-                running.obs = np.asarray(reply.value[0], np.float32)
-                now = time.monotonic()
-                running.reset_s, running.started = now - running.started, now
-                running.controller.begin(running.job.uid)
-                if hasattr(running.controller, "started"):
-                    running.controller.started(running.job.uid, reply.value[1])
-            else:
-                if reply.kind in BAD_INPUT_ERRORS:  # every episode would fail alike: stop, say why
-                    raise ValueError(reply.error)
-                self._finish(reply.env_id, "crashed", _cause(reply), None)
+        jobs = {s: self.active[s].job for s in slots}
+        started, failures = self.batch.run_resets({s: job.seed for s, job in jobs.items()},
+                                                   {s: job.options for s, job in jobs.items()})
+        for slot, reply in sorted(failures.items()):
+            if reply.kind in BAD_INPUT_ERRORS:  # every episode would fail alike: stop, say why
+                raise ValueError(reply.error)
+            self._finish(slot, "crashed", reply.error or WORKER_DIED, None)
+        for slot, (obs, info) in sorted(started.items()):
+            running = self.active[slot]
+            running.obs = obs
+            now = time.monotonic()
+            running.reset_s, running.started = now - running.started, now
+            running.controller.begin(running.job.uid)
+            if hasattr(running.controller, "started"):
+                running.controller.started(running.job.uid, info)
 
     def _actions(self) -> dict[int, np.ndarray]:
         """Each controller acts once for all of its running episodes."""
@@ -221,27 +225,24 @@ class _Scheduler:
         return actions
 
     def _step(self, actions: dict[int, np.ndarray]) -> None:
-        requests = [Request(s, "step", {"action": actions[s]}) for s in self.active]
-        for reply in self.backend.run(requests):
-            running, action = self.active[reply.env_id], actions[reply.env_id]
+        results, unanswered = self.batch.run_steps(actions)
+        for slot, (obs, reward, terminated, truncated, info) in sorted(results.items()):
+            running = self.active[slot]
             running.steps += 1
-            if not reply.ok:
-                running.trace.append(StepRecord(running.obs, action, math.nan, running.iterations, {},
-                                                "crashed"))
-                self._finish(reply.env_id, "crashed", _cause(reply), None)
-                continue
-            obs, reward, terminated, truncated, info = reply.value
             factors = info.get("factors")
-            running.trace.append(StepRecord(running.obs, action, float(reward), int(info["iterations"]),
-                                            dict(info.get("residuals", {})), info["outcome"],
-                                            None if factors is None else tuple(map(float, factors))))
-            if hasattr(running.controller, "observe"):
+            # a step the solver's side could not answer has no reward of its own (the batch's is the
+            # training penalty): NaN says so to solve's report
+            running.trace.append(StepRecord(
+                running.obs, actions[slot], math.nan if slot in unanswered else float(reward),
+                int(info["iterations"]), dict(info.get("residuals", {})), info["outcome"],
+                None if factors is None else tuple(map(float, factors))))
+            if hasattr(running.controller, "observe") and slot not in unanswered:
                 running.controller.observe(running.job.uid, running.trace[-1])
             running.obs = np.asarray(obs, np.float32)
             running.iterations = int(info["iterations"])
             if terminated or truncated:
                 record = info.get("episode")
-                self._finish(reply.env_id, info["outcome"], info.get("cause", ""),
+                self._finish(slot, info["outcome"], info.get("cause", ""),
                              EpisodeRecord.from_json(record) if isinstance(record, Mapping) else None)
 
     def _finish(self, slot: int, outcome: str, cause: str, record: EpisodeRecord | None) -> None:
@@ -255,10 +256,6 @@ class _Scheduler:
         running.controller.end(running.job.uid)
         self.results[running.job.uid] = result
         self.on_result(result)
-
-
-def _cause(reply: Reply) -> str:
-    return WORKER_DIED if reply.worker_died else reply.error
 
 
 def _controllers(jobs: Sequence[EpisodeJob]) -> dict[int, Controller]:

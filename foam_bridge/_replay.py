@@ -16,14 +16,14 @@ from typing import Any
 
 import numpy as np
 
-from foam_bridge._backends import WORKER_DIED, Request
+from foam_bridge._backends import WORKER_DIED
 
 __all__ = ["EpisodeReplay", "from_json", "json_ready"]
 
 
 class EpisodeReplay:
     """Snapshot and replay of the running episodes, mixed into FoamBatchCore (it uses the batch's
-    ``backend``, ``_tallies``, ``_streams``, ``_start_tally`` and ``_step_result``)."""
+    ``_tallies``, ``_streams``, ``run_resets`` and ``run_steps``)."""
 
     def _episode_entry(self, env_id: int) -> dict[str, Any]:
         """Env ``env_id``'s running episode as JSON-ready data: its reset seed, the actions taken, K,
@@ -46,22 +46,19 @@ class EpisodeReplay:
             stream.bit_generator.state = json.loads(entry["stream"])
 
     def _replay_resets(self, entries: dict[int, dict[str, Any]]) -> str:
-        seeds = {i: int(entry["seed"]) for i, entry in entries.items()}
-        for reply in self.backend.run([Request(i, "reset", {"seed": s, "options": None})
-                                       for i, s in seeds.items()]):
-            if not reply.ok:
-                return f"env {reply.env_id}: reset failed: {reply.error or WORKER_DIED}"
-            self._start_tally(reply.env_id, seeds[reply.env_id], *reply.value)
+        _, failures = self.run_resets({i: int(entry["seed"]) for i, entry in entries.items()}, {})
+        for env_id, reply in sorted(failures.items()):
+            return f"env {env_id}: reset failed: {reply.error or WORKER_DIED}"
         return ""
 
     def _replay_steps(self, entries: dict[int, dict[str, Any]]) -> str:
         for step in range(max(len(entry["actions"]) for entry in entries.values())):
             due = {i: np.asarray(e["actions"][step], np.float64) for i, e in entries.items()
                    if len(e["actions"]) > step}
-            for reply in self.backend.run([Request(i, "step", {"action": a}) for i, a in due.items()]):
-                _, _, terminated, truncated, _ = self._step_result(reply, due[reply.env_id])
-                if terminated or truncated or not reply.ok:
-                    return f"env {reply.env_id}: its episode ended at replayed step {step + 1}"
+            results, _ = self.run_steps(due)
+            for env_id, (_, _, terminated, truncated, _) in sorted(results.items()):
+                if terminated or truncated:
+                    return f"env {env_id}: its episode ended at replayed step {step + 1}"
         return ""
 
     def _replay_differs(self, entries: dict[int, dict[str, Any]]) -> str:

@@ -258,6 +258,10 @@ class _ScriptedPool:
 
     def __init__(self) -> None:
         self.resets: list[int] = []
+        self.stranded: dict[int, str] = {}  # envs whose worker died beside them: none here
+
+    def node_of(self, env_id: int) -> str:
+        return ""
 
     def run(self, requests):
         from foam_bridge._backends import Reply
@@ -279,11 +283,11 @@ class _ScriptedPool:
 
 
 def test_two_slots_freed_in_one_step_with_one_cell_left_start_only_that_cell(monkeypatch, tmp_path):
-    from foam_bridge import _episodes as episodes
+    from foam_bridge import _batched as batched
     from foam_bridge._grid import run_grid
 
     pool = _ScriptedPool()
-    monkeypatch.setattr(episodes, "make_backend", lambda *args, **kwargs: pool)
+    monkeypatch.setattr(batched, "make_backend", lambda *args, **kwargs: pool)
     # three cells on two slots: raised IndexError when both slots ended at once
     cells = run_grid(FoamEnvConfig(), [0.9, 0.8, 0.7], [0.9], pool=2, work_dir=tmp_path)
     assert [(c.alpha_u, c.iterations, c.outcome, c.wall_time_s) for c in cells] == [

@@ -177,6 +177,10 @@ class ScriptedBackend:
     def __init__(self, lengths, die=(), reject=()):
         self.lengths, self.die, self.reject = lengths, dict(die), set(reject)
         self.slot_uid, self.steps, self.stepped = {}, {}, []
+        self.stranded = {}  # the pool's record of envs whose worker died beside them: none here
+
+    def node_of(self, env_id):
+        return ""
 
     def run(self, requests):
         from foam_bridge._backends import Reply
@@ -211,11 +215,11 @@ class ScriptedBackend:
 
 
 def _scripted(monkeypatch, backend, lengths, pool):
-    from foam_bridge import _episodes as episodes
+    from foam_bridge import _batched as batched
     from jaxsimrl.apps.foam.evaluation import runner as foam_runner
     from jaxsimrl.apps.foam.evaluation.controllers import ConstantController
 
-    monkeypatch.setattr(episodes, "make_backend", lambda *args, **kwargs: backend)
+    monkeypatch.setattr(batched, "make_backend", lambda *args, **kwargs: backend)
     jobs = [foam_runner.Job(uid, "c", "h", 50.0, 0) for uid in range(len(lengths))]
     return foam_runner.run_episodes(FoamEnvConfig(), jobs, {"c": ConstantController("c", (0.9, 0.8))}, pool)
 

@@ -52,7 +52,8 @@ def test_a_queue_longer_than_the_pool_runs_each_job_with_its_own_options_and_con
     assert [run.job.uid for run in runs] == [0, 1, 2, 3] and sorted(uid for uid, _ in ended) == [0, 1, 2, 3]
     assert {name for _, names in ended for name in names} == {"env_0", "env_1"}  # two slots for four jobs
     failed = runs[1]
-    assert failed.outcome == "crashed" and "finite" in failed.cause and failed.record is None
+    assert failed.outcome == "crashed" and "finite" in failed.cause
+    assert failed.record is not None and failed.record.outcome == "crashed"  # the batch core's record
     assert failed.iterations == 0 and len(failed.trace) == 1 and np.isnan(failed.trace[0].reward)
     for run in runs[:1] + runs[2:]:
         assert run.outcome == "converged", run.cause

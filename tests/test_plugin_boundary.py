@@ -83,12 +83,12 @@ def test_jaxsimrl_uses_foam_bridge_s_public_face_alone() -> None:
     assert deep == [] and unknown == []
 
 
-def _step_requests(tree: ast.AST) -> list[int]:
+def _step_requests(tree: ast.AST, methods: tuple[str, ...] = ("step",)) -> list[int]:
     """Lines that build a step request to a solver worker (``Request(env, "step", ...)``, or through a
-    name ``request`` that stands for it)."""
+    name ``request`` that stands for it); ``methods``: the requests to look for."""
     return [node.lineno for node in ast.walk(tree) if isinstance(node, ast.Call)
             and str(getattr(node.func, "id", getattr(node.func, "attr", ""))).lower() == "request"
-            and len(node.args) > 1 and getattr(node.args[1], "value", None) == "step"]
+            and len(node.args) > 1 and getattr(node.args[1], "value", None) in methods]
 
 
 def test_jaxsimrl_drives_no_solver_itself() -> None:
@@ -98,6 +98,15 @@ def test_jaxsimrl_drives_no_solver_itself() -> None:
     found = {str(path.relative_to(ROOT.parent)): lines for path in sorted(ROOT.rglob("*.py"))
              if (lines := _step_requests(ast.parse(path.read_text(), str(path))))}
     assert found == {}
+
+
+def test_foam_bridge_drives_its_solvers_from_one_place() -> None:
+    """The episode pool, the lock-step and asynchronous training batches and their replay all reset and
+    step solvers through FoamBatchCore: one method builds each request, nothing else in foam_bridge does."""
+    package = Path(foam_bridge.__file__).parent
+    found = {str(path.relative_to(package)): lines for path in sorted(package.rglob("*.py"))
+             if (lines := _step_requests(ast.parse(path.read_text(), str(path)), ("step", "reset")))}
+    assert list(found) == ["_batched.py"] and len(found["_batched.py"]) == 2
 
 
 def test_foam_bridge_s_internals_are_private_and_its_face_complete() -> None:
