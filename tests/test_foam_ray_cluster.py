@@ -428,9 +428,16 @@ def test_train_foam_goes_on_after_a_node_loss_and_a_killed_driver_loses_no_episo
         resumed = _train_foam(processes, tmp, "--resume", str(run), "--episodes", str(target), *common)
         wait_until(lambda: max(_checkpoints(run), default=0) > first, resumed,
                    "a checkpoint of the resumed run", seconds=400)
-        wait_until(lambda: bool(solver_pids(tmp)), resumed, "a solver of the next update", seconds=120)
         time.sleep(1.0)
-        solvers = solver_pids(tmp)
+        # the solvers seen, then the kill at once: short episodes can leave no solver for a moment (every
+        # env between two episodes), and a kill then would test nothing (seen once, 2026-12-05)
+        solvers: list[int] = []
+
+        def solvers_seen() -> bool:
+            solvers[:] = solver_pids(tmp)
+            return bool(solvers)
+
+        wait_until(solvers_seen, resumed, "a solver of the next update", seconds=120)
         os.kill(resumed.pid, signal.SIGKILL)
         _, err = resumed.communicate(timeout=60)
         assert f"resumed at update {first} with its {envs} episodes in flight replayed" in err, err
