@@ -47,9 +47,10 @@ class EpisodeReplay:
 
     def _replay_resets(self, entries: dict[int, dict[str, Any]]) -> str:
         _, failures = self.run_resets({i: int(entry["seed"]) for i, entry in entries.items()}, {})
-        for env_id, reply in sorted(failures.items()):
-            return f"env {env_id}: reset failed: {reply.error or WORKER_DIED}"
-        return ""
+        if not failures:
+            return ""
+        env_id = min(failures)
+        return f"env {env_id}: reset failed: {failures[env_id].error or WORKER_DIED}"
 
     def _replay_steps(self, entries: dict[int, dict[str, Any]]) -> str:
         for step in range(max(len(entry["actions"]) for entry in entries.values())):

@@ -63,18 +63,17 @@ def table(cases: dict[str, dict[str, dict]], walls: dict[str, dict]) -> str:
     ratios: dict[str, list[float | None]] = {"own": [], "constant": [], "rule": [], "oracle": []}
     for name, rows in sorted(cases.items(), key=lambda item: item[0].lower()):
         learned, own, oracle = rows["learned"], rows["own"], rows.get("oracle")
-        rule = _better_rule(rows)
-        ratios["own"].append(_ratio(learned, own))
+        to_own, to_rule, to_oracle = (_ratio(learned, other) for other in (own, _better_rule(rows), oracle))
+        ratios["own"].append(to_own)
         ratios["constant"].append(_ratio(learned, rows["family-constant"]))
-        ratios["rule"].append(_ratio(learned, rule))
-        ratios["oracle"].append(_ratio(learned, oracle))
+        ratios["rule"].append(to_rule)
+        ratios["oracle"].append(to_oracle)
         cost = f" ({oracle['grid_iterations']} its, {oracle['grid_runs']} runs)" if oracle else ""
         wall = walls.get(name)
         cells = [name, learned["algorithm"], _cell(own),
-                 f"{_cell(learned)} ({_ratio(learned, own):.3f})", _cell(rows["family-constant"]),
+                 f"{_cell(learned)} ({to_own:.3f})", _cell(rows["family-constant"]),
                  _cell(rows["residual-rule"]), _cell(rows["bandit"]), _cell(rows["random"]),
-                 _cell(oracle) + cost, f"{_ratio(learned, rule):.3f}",
-                 "-" if ratios["oracle"][-1] is None else f"{ratios['oracle'][-1]:.3f}",
+                 _cell(oracle) + cost, f"{to_rule:.3f}", "-" if to_oracle is None else f"{to_oracle:.3f}",
                  str(own.get("agrees_with_learned")), ", ".join(learned["fallback"]) or "none",
                  "-" if wall is None else f"{wall['median_ratio']:.3f}"]
         lines.append("| " + " | ".join(cells) + " |")
@@ -126,9 +125,10 @@ def main() -> None:
     walls = {} if not walls_path.exists() else {
         row["case"]: row for row in map(json.loads, walls_path.read_text().splitlines())}
     cases = _rows(args.directory)
-    (args.directory / "table.md").write_text(table(cases, walls))
+    text = table(cases, walls)
+    (args.directory / "table.md").write_text(text)
     figure(cases, args.directory / "ratios.png")
-    print((args.directory / "table.md").read_text())
+    print(text)
 
 
 if __name__ == "__main__":
