@@ -34,7 +34,7 @@ from jaxsimrl.apps.foam.solve.agreement import compare_results, summary_line, to
 from jaxsimrl.apps.foam.solve.controller import policy_env_config
 from jaxsimrl.apps.foam.solve.criterion import parse_residual, resolve
 from jaxsimrl.apps.foam.solve.own import OwnProcess
-from jaxsimrl.apps.foam.solve.settings import solve_config
+from jaxsimrl.apps.foam.solve.settings import CaseSettings, nudged_factors, solve_config
 from jaxsimrl.apps.foam.solve.watchdog import Watchdog
 
 TUTORIALS = Path("/usr/share/doc/openfoam-examples/examples/incompressible/simpleFoam")
@@ -361,6 +361,32 @@ def test_solve_compare_says_the_result_agrees_with_own(pitz_daily_solved) -> Non
         "patchAverage(name=inlet,p)/surfaceFieldValue.dat"}
     assert all(entry["ok"] for entry in objects.values())
     assert "    results agree with own: fields max rel. L2 " in report.summary()
+
+
+@pytest.mark.slow  # pitz_daily_solved
+def test_solve_compare_measures_the_spread_of_two_legitimate_runs(pitz_daily_solved) -> None:
+    _, out, _, report = pitz_daily_solved
+    own = json.loads((out / "solve.json").read_text())["compare"]["own"]
+    spread = own["spread"]  # the own run against one at alpha_u 0.95 (pitzDaily's own 0.9, SIMPLEC: up)
+    assert spread["measured"] and spread["nudge"] == "alpha_u 0.95" and spread["factors"][0] == 0.95
+    assert spread["iterations"] > 0 and spread["iterations"] != own["iterations"]  # another run indeed
+    assert (out / "compare" / "spread" / "log.simpleFoam").is_file()
+    assert set(spread["fields"]) == {"U", "p", "k", "epsilon"}
+    assert all(value > 0 for value in spread["fields"].values())  # converged runs stop apart
+    for name, entry in own["agreement"]["fields"].items():  # the verdict allows the larger of the two
+        assert entry["spread"] == spread["fields"][name]
+        assert entry["allowed"] == max(entry["tolerance"], entry["spread"])
+    assert "the criterion " in report.summary().split("results agree with own")[1]
+
+
+def test_the_spread_run_nudges_alpha_u_the_way_the_algorithm_tolerates() -> None:
+    def nudged(u: float | None, variant: str) -> tuple[tuple[float, float, float], str]:
+        return nudged_factors(CaseSettings((u, 0.3, 0.7), False, 1000, variant))
+
+    assert nudged(0.9, "SIMPLEC") == ((0.95, 0.3, 0.7), "alpha_u 0.95")  # SIMPLEC: up, never below own
+    assert nudged(0.95, "SIMPLEC")[0][0] == 0.9  # at the top already: down
+    assert nudged(0.7, "SIMPLE") == ((0.65, 0.3, 0.7), "alpha_u 0.65")  # plain SIMPLE: down
+    assert nudged(None, "SIMPLE")[0][0] == 0.95  # U not relaxed (1): down
 
 
 @pytest.mark.slow  # pitz_daily_solved and another run

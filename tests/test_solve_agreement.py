@@ -14,7 +14,9 @@ from foamlib import FoamFieldFile
 from jaxsimrl.apps.foam.solve.agreement import (
     compare_results,
     final_rows,
+    measure_spread,
     relative_difference,
+    spread_line,
     summary_line,
     time_series,
     tolerances,
@@ -235,3 +237,36 @@ def test_no_figure_without_a_residual_criterion(tmp_path):
     agreement = compare_results(tmp_path, tmp_path, ["U"], {}, (True, True))
     assert agreement["agree"] is None and "no residual criterion" in agreement["reason"]
     assert summary_line("own", agreement).startswith("no agreement figure with own")
+
+
+def test_a_difference_within_the_measured_spread_agrees(tmp_path: Path) -> None:
+    fields = _fields()
+    own = _case(tmp_path / "own", "282", fields)
+    nudged = _case(tmp_path / "nudged", "250", dict(fields, k=fields["k"] * (1 + 4 * TOL)))
+    ours = _case(tmp_path / "ours", "200", dict(fields, k=fields["k"] * (1 + 2 * TOL)))
+    spread = measure_spread(own, nudged, ["U", "p", "k"], CRITERION, (True, True), "alpha_u 0.95")
+    assert spread["measured"] and not spread["settled"]  # k: 4 tolerances apart, U and p equal
+    assert spread["fields"]["U"] == 0.0 and spread["fields"]["k"] > 3 * TOL
+    assert not _agreement(ours, own)["agree"]  # the tolerance alone flags k ...
+    agreement = compare_results(ours, own, ["U", "p", "k"], CRITERION, (True, True), spread=spread)
+    k = agreement["fields"]["k"]  # ... within what two legitimate runs differ by, it agrees
+    assert agreement["agree"] and k["ok"] and k["allowed"] == k["spread"] == spread["fields"]["k"] > TOL
+    assert agreement["fields"]["U"]["allowed"] == TOL  # no spread in U: the tolerance holds
+    far = _case(tmp_path / "far", "200", dict(fields, k=fields["k"] * (1 + 8 * TOL)))
+    assert not compare_results(far, own, ["U", "p", "k"], CRITERION, (True, True), spread=spread)["agree"]
+
+
+def test_the_spread_line_says_whether_the_criterion_fixes_the_answer(tmp_path: Path) -> None:
+    fields = _fields()
+    own = _case(tmp_path / "own", "282", fields)
+    close = _case(tmp_path / "close", "250", dict(fields, k=fields["k"] * (1 + TOL / 2)))
+    settled = measure_spread(own, close, ["U", "p", "k"], CRITERION, (True, True), "alpha_u 0.95")
+    assert settled["settled"]
+    assert spread_line(settled, CRITERION).startswith("the criterion fixes the answer to within its")
+    far = _case(tmp_path / "far", "250", dict(fields, p=fields["p"] * 1.12))  # 12 % apart in p
+    loose = measure_spread(own, far, ["U", "p", "k"], CRITERION, (True, True), "alpha_u 0.95")
+    line = spread_line(loose, CRITERION)
+    assert not loose["settled"] and "leaves the answer uncertain" in line and "end p 12 % apart" in line
+    assert "about 1e-04 (--residual)" in line  # 1e-2 x 1 % / 12 %, down to a decade
+    unconverged = measure_spread(own, far, ["U"], CRITERION, (True, False), "alpha_u 0.95")
+    assert not unconverged["measured"] and "did not converge" in spread_line(unconverged, CRITERION)

@@ -48,7 +48,13 @@ def register(subparsers: Any) -> None:
                         "case's own to its box's top and plays the one that gains most; random draws "
                         "them in the box at every step (a baseline)")
     parser.add_argument("--compare", action="store_true", help="also run the case with its own settings, "
-                        "in parallel, and report the savings")
+                        "in parallel, and report the savings; and a third run at its own factors with "
+                        "alpha_u 0.05 off, to measure how far two legitimate runs end apart at its criterion "
+                        "(the spread): the answers agree when within the larger of the tolerance and the "
+                        "spread")
+    parser.add_argument("--no-spread", action="store_false", dest="spread",
+                        help="with --compare: skip the spread run (the agreement then uses the tolerance "
+                        "alone)")
     parser.add_argument("--compare-constant", type=relaxation_factor, nargs="+", metavar="F",
                         help="also run the case with constant factors U P [TURBULENCE]")
     parser.add_argument("--residual", type=residual_spec, metavar="SPEC",
@@ -125,7 +131,7 @@ def solve_options(args: argparse.Namespace) -> dict[str, Any]:
             "max_iterations": args.max_iterations, "confirm_alpha_u": args.confirm_alpha_u or "own",
             "step_timeout_s": args.step_timeout, "inlet_patch": args.inlet_patch, "residual": args.residual,
             "from_time": args.from_time, "rule": None if args.controller == "learned" else args.controller,
-            "ranks": args.ranks, "keep_decomposed": args.keep_decomposed}
+            "ranks": args.ranks, "keep_decomposed": args.keep_decomposed, "spread": args.spread}
 
 
 def run_solve(args: argparse.Namespace) -> int:

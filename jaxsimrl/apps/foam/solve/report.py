@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from foam_bridge import LogParser, field_residual
-from jaxsimrl.apps.foam.solve.agreement import summary_line
+from jaxsimrl.apps.foam.solve.agreement import spread_line, summary_line
 from jaxsimrl.apps.foam.solve.criterion import describe
 from jaxsimrl.runs.atomic import atomic_write_bytes, atomic_write_json
 
@@ -65,6 +65,8 @@ class SolveReport:
                          f"wall time {other['ratio_wall_time']:.3f}")
             if "agreement" in other:
                 lines.append(f"    {summary_line(name, other['agreement'])}")
+            if "spread" in other:
+                lines.append(f"    {spread_line(other['spread'], self.data['settings']['criterion'])}")
         return "\n".join(lines)
 
 

@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from foam_bridge import FAILURES, OpenFOAMNotFoundError, export_case, shares_of, solved_field_names
-from jaxsimrl.apps.foam.solve.agreement import compare_results
+from jaxsimrl.apps.foam.solve.agreement import compare_results, measure_spread
 from jaxsimrl.apps.foam.solve.controller import BackgroundLoad, Controller, as_controller, policy_env_config
 from jaxsimrl.apps.foam.solve.criterion import (
     Residual,
@@ -56,6 +56,7 @@ from jaxsimrl.apps.foam.solve.settings import (
     CheckedCase,
     check_factor,
     not_applicable,
+    nudged_factors,
     observation_factor,
     own_action,
     read_case_settings,
@@ -67,6 +68,8 @@ from jaxsimrl.runs.signals import stop_word
 
 WORK_DIR = ".solve-work"
 COMPARE_DIR = "compare"
+#: The comparison run at the case's own factors with alpha_u nudged (``--compare``'s spread).
+SPREAD = "spread"
 
 
 def solve_case(case: str | Path, out: str | Path, policy: Any = None,
@@ -77,7 +80,7 @@ def solve_case(case: str | Path, out: str | Path, policy: Any = None,
                step_timeout_s: float = 300.0, inlet_patch: str | None = None,
                say: Callable[[str], None] | None = None, residual: Residual | str | None = None,
                from_time: float | None = None, rule: str | None = None, ranks: int | None = None,
-               keep_decomposed: bool = False) -> SolveReport:
+               keep_decomposed: bool = False, spread: bool = True) -> SolveReport:
     """Run ``case`` with the controller (``policy``: a run directory, a :class:`Controller`, a policy from
     ``jaxsimrl.load_policy``, or None for the shipped one) into ``out``; see the module docstring. Bad
     input (a missing or decomposed case, a non-empty ``out``, a case the bridge cannot drive, a bad
@@ -92,7 +95,10 @@ def solve_case(case: str | Path, out: str | Path, policy: Any = None,
     a partly converged run goes on; iterations and the budget count from there); ``rule``: a
     no-training rule (a key of jaxsimrl.apps.foam.solve.rules.RULES) instead of ``policy``; ``ranks``: MPI
     ranks of every run (jaxsimrl.apps.foam.solve.mpi; a decomposed case needs its own count),
-    ``keep_decomposed``: leave the ranks' processor* directories in ``out`` too."""
+    ``keep_decomposed``: leave the ranks' processor* directories in ``out`` too; ``spread`` (with
+    ``compare``): also run the case at its own factors with alpha_u a little off
+    (jaxsimrl.apps.foam.solve.settings.nudged_factors), to measure how far two legitimate runs end apart
+    at its criterion (jaxsimrl.apps.foam.solve.agreement.measure_spread): a third run beside the two."""
     say = say or (lambda text: None)
     case, out = _check_paths(case, out)
     ranks = check_ranks(case, ranks)
@@ -105,7 +111,8 @@ def solve_case(case: str | Path, out: str | Path, policy: Any = None,
         source = prepared_input(case, out)
         report = _solve(source, out, policy, compare, compare_constant, max_iterations, confirm_alpha_u,
                         watchdog or WatchdogSettings(), (action_box, step_timeout_s, inlet_patch), residual,
-                        start_of(source, from_time), say, started, others, rule, (ranks, keep_decomposed))
+                        start_of(source, from_time), say, started, others, rule, (ranks, keep_decomposed),
+                        spread)
     except KeyboardInterrupt as stop:  # Ctrl-C or SIGTERM: the finally blocks below stop every solver
         write_status(out, "interrupted", case, stop_word(stop))
         raise
@@ -148,7 +155,7 @@ def _solve(case: Path, out: Path, policy: Any, compare: bool, constant: Sequence
            max_iterations: int | None, confirm: float | str | None, watchdog: WatchdogSettings,
            env: tuple[Any, float, str], residual: Residual | str | None, begin: tuple[int, str],
            say: Callable[[str], None], started: float, others: list[OwnProcess],
-           rule: str | None, parallel_run: tuple[int, bool]) -> SolveReport:
+           rule: str | None, parallel_run: tuple[int, bool], spread: bool = True) -> SolveReport:
     # What waits on what: the controller loads (JAX, its acting arrays, the first action compiled) in a
     # thread from here on, beside the case check (copy, mesh, one SIMPLE iteration: once, the controlled
     # run's env starts from its build) and the worker's start; the first step waits for both, every
@@ -170,7 +177,8 @@ def _solve(case: Path, out: Path, policy: Any, compare: bool, constant: Sequence
                                 start_time=start, settings=settings)
     cfg = dataclasses.replace(cfg, ranks=ranks).validate()
     phases["case_check_s"], mark = time.monotonic() - mark, time.monotonic()
-    own = Own(settings.flat, None if residual is None else dict(cfg.convergence), start, ranks)
+    own = Own(settings.flat, None if residual is None else dict(cfg.convergence), start, ranks,
+              nudged_factors(settings) if compare and spread else None)
     parallel = runs_side_by_side(ranks)  # else the runs would share cores: one after the other
     comparisons = _start_comparisons(case, out, compare, constant, own, others) if parallel else {}
     observed = observed_mapping(trained, checked.info.solved_fields)[0]
@@ -202,11 +210,14 @@ def _solve(case: Path, out: Path, policy: Any, compare: bool, constant: Sequence
     if not parallel:
         comparisons = _start_comparisons(case, out, compare, constant, own, others)
     results = {name: process.result(24 * 3600.0) for name, process in comparisons.items()}
+    nudged = results.pop(SPREAD, None)
     report = build_report(case, out, controller, cfg, run, rescue, time_name, wall, results, episode,
                           observed if run.outcome != "not run" else None)
     mark = time.monotonic()
-    _add_agreement(report, out, results, cfg.convergence, solved_field_names(checked.info.solved_fields),
-                   "own" if rescue is not None else None)
+    fields = solved_field_names(checked.info.solved_fields)
+    spread_found = _spread(results.get("own"), nudged, own, fields, cfg.convergence)
+    _add_agreement(report, out, results, cfg.convergence, fields, "own" if rescue is not None else None,
+                   spread_found)
     phases["agreement_s"] = time.monotonic() - mark
     report.data["result"]["phases"] = phases
     report.data["settings"]["criterion"] = reported(cfg.convergence)
@@ -265,6 +276,7 @@ class Own:
     criterion: dict[str, float] | None
     start: int = 0
     ranks: int = 1
+    nudged: tuple[tuple[float, ...], str] | None = None
 
 
 def _start_comparisons(case: Path, out: Path, compare: bool, constant: Sequence[float] | None, own: Own,
@@ -276,6 +288,8 @@ def _start_comparisons(case: Path, out: Path, compare: bool, constant: Sequence[
         wanted["own"] = None
     if constant is not None:
         wanted["constant"] = constant
+    if compare and own.nudged is not None:
+        wanted[SPREAD] = own.nudged[0]
     started = {}
     for name, factors in wanted.items():
         dest = out / COMPARE_DIR / name
@@ -287,14 +301,29 @@ def _start_comparisons(case: Path, out: Path, compare: bool, constant: Sequence[
 
 
 def _add_agreement(report: SolveReport, out: Path, results: dict[str, OwnRun], criterion: dict[str, float],
-                   fields: list[str], rescued_by: str | None) -> None:
+                   fields: list[str], rescued_by: str | None, spread: dict[str, Any] | None = None) -> None:
     """Each comparison's ``agreement``: is the result in ``out`` the same answer as its run's
-    (jaxsimrl.apps.foam.solve.agreement); ``rescued_by``: the comparison whose run ``out`` holds
+    (jaxsimrl.apps.foam.solve.agreement), within the larger of the tolerance and the measured ``spread``
+    (kept under ``compare.own.spread``); ``rescued_by``: the comparison whose run ``out`` holds
     (_own_rescue)."""
     for name, other in results.items():
         report.data["compare"][name]["agreement"] = compare_results(
             out, Path(other.case), fields, criterion, (report.converged, other.converged), name,
-            same_run=name == rescued_by)
+            same_run=name == rescued_by, spread=spread)
+    if spread is not None and "own" in report.data["compare"]:
+        report.data["compare"]["own"]["spread"] = spread
+
+
+def _spread(own_run: OwnRun | None, nudged: OwnRun | None, own: Own, fields: list[str],
+            criterion: dict[str, float]) -> dict[str, Any] | None:
+    """measure_spread of the own run against the nudged one, with the nudged run's figures; None without
+    a spread run."""
+    if own_run is None or nudged is None or own.nudged is None:
+        return None
+    found = measure_spread(Path(own_run.case), Path(nudged.case), fields, criterion,
+                           (own_run.converged, nudged.converged), own.nudged[1])
+    return {**found, "factors": list(own.nudged[0]), "iterations": nudged.iterations,
+            "solver_cpu_time_s": nudged.cpu_time_s, "case": nudged.case}
 
 
 def _own_rescue(case: Path, out: Path, comparisons: dict[str, OwnProcess], run: Any, own: Own,

@@ -305,6 +305,22 @@ def around_own(cfg: FoamEnvConfig, settings: CaseSettings) -> FoamEnvConfig:
     return dataclasses.replace(cfg, action_low=low, action_high=high, action_pivot=pivot)
 
 
+#: How far from the case's own alpha_u the spread run (``--compare``) relaxes U: a change a user makes
+#: without a second thought, whose converged answer is as legitimate as the own run's.
+SPREAD_NUDGE = 0.05
+
+
+def nudged_factors(settings: CaseSettings) -> tuple[tuple[float, float, float], str]:
+    """The spread run's constant factors (the case's own, alpha_u moved by ``SPREAD_NUDGE`` the way its
+    algorithm tolerates: SIMPLEC up, as SIMPLEC with an unrelaxed pressure goes unstable below its own
+    alpha_u (T3A: see SIMPLEC_FLOOR's note), plain SIMPLE down; U unrelaxed: 1 - SPREAD_NUDGE) and how to
+    say it ("alpha_u 0.85")."""
+    u, p, t = (1.0 if value is None else value for value in settings.factors)
+    up = settings.variant == "SIMPLEC" and u + SPREAD_NUDGE <= SIMPLEC_TOP[0] + 1e-9
+    nudged = round(u + SPREAD_NUDGE if up else min(u, 1.0) - SPREAD_NUDGE, 4)
+    return (nudged, p, t), f"alpha_u {nudged:g}"
+
+
 def own_action(settings: CaseSettings, cfg: FoamEnvConfig, size: int) -> list[float]:
     """The case's own factors as an action of ``size`` entries, in the env's box (a factor the case does not
     set means no relaxation: 1, clipped to the box's top)."""
