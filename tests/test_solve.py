@@ -312,15 +312,17 @@ PITZ_DAILY_FUNCTIONS = """
 
 @pytest.fixture(scope="module")
 def pitz_daily_solved(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, str, SolveReport]:
-    """(case, out, the case's tree hash before, report) of one ``solve --compare`` of pitzDaily with
-    PITZ_DAILY_FUNCTIONS added to its own streamlines."""
+    """(case, out, the case's tree hash before, report) of one ``solve --compare`` of pitzDaily by the
+    shipped learned controller (a run other than the own one), with PITZ_DAILY_FUNCTIONS added to its own
+    streamlines."""
     case = _pitz_daily(tmp_path_factory.mktemp("solved"))
     control = case / "system" / "controlDict"
     control.write_text(control.read_text().replace("#includeFunc streamlines\n",
                                                    "#includeFunc streamlines\n" + PITZ_DAILY_FUNCTIONS))
     before = _tree_hash(case)
     out = case.parent / "out"
-    return case, out, before, solve_case(case, out, compare=True, step_timeout_s=120)
+    report = solve_case(case, out, policy=DEFAULT_CONTROLLER, compare=True, step_timeout_s=120)
+    return case, out, before, report
 
 
 @pytest.mark.slow  # pitz_daily_solved: solve --compare of pitzDaily
@@ -496,7 +498,8 @@ def test_a_plain_simple_case_runs_with_its_own_settings(tmp_path: Path) -> None:
     control = case / "system" / "controlDict"
     control.write_text(control.read_text().replace("endTime         2000;", "endTime         300;"))
     out = tmp_path / "out"
-    report = solve_case(case, out, compare=True, step_timeout_s=120)  # the own run is the comparison's
+    report = solve_case(case, out, policy=DEFAULT_CONTROLLER, compare=True,  # the own run is the comparison's
+                        step_timeout_s=120)
     data = json.loads((out / "solve.json").read_text())
     assert [event["kind"] for event in data["fallback"]] == ["not applicable"]
     agreement = data["compare"]["own"]["agreement"]  # out holds the own run's result, not converged in 300

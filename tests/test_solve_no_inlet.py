@@ -16,6 +16,7 @@ from foam_bridge._base_case import declared_patches
 from foam_bridge._config import FoamEnvConfig
 from foam_bridge._openfoam import find_openfoam
 from jaxsimrl.apps.foam.solve import solve_case
+from jaxsimrl.apps.foam.solve.controller import DEFAULT_CONTROLLER
 from jaxsimrl.apps.foam.solve.settings import inlet_of
 
 CAVITY = Path("/usr/share/doc/openfoam-examples/examples/incompressible/pisoFoam/RAS/cavity")
@@ -79,7 +80,8 @@ def test_a_cavity_is_solved_by_a_rule_and_handed_to_its_own_settings_by_the_cont
         tmp_path: Path, controller: str) -> None:
     cavity = _cavity(tmp_path / "cavity")
     out = tmp_path / "out"
-    report = solve_case(cavity, out, rule=None if controller == "learned" else controller, step_timeout_s=120)
+    shipped = DEFAULT_CONTROLLER if controller == "learned" else None
+    report = solve_case(cavity, out, policy=shipped, rule=None if shipped else controller, step_timeout_s=120)
     data = json.loads((out / "solve.json").read_text())
     assert report.converged and data["status"] == "complete"
     assert (out / data["result"]["time_directory"] / "U").is_file()

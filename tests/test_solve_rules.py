@@ -18,8 +18,13 @@ from test_solve import _coarse_step, _marked_processes
 from jaxsimrl.apps.foam.solve import solve_case
 from jaxsimrl.apps.foam.solve.rules import (
     GROWTH_DECADES,
+    HOVER_STEPS,
     RAISE_SHARE,
+    RISE_SHARE,
+    SWITCH_DECADES,
     Bandit,
+    GuardedRise,
+    OwnFactors,
     RandomFactors,
     ResidualRule,
     RulePolicy,
@@ -75,7 +80,7 @@ def test_the_bandit_tries_its_arms_upward_drops_an_arm_that_grew_and_plays_the_b
     assert bandit._pulls[1] > 3 * bandit._pulls[0] and bandit._pulls[2] == 1
 
 
-@pytest.mark.parametrize("rule_type", [ResidualRule, Bandit, RandomFactors])
+@pytest.mark.parametrize("rule_type", [ResidualRule, Bandit, RandomFactors, GuardedRise, OwnFactors])
 @pytest.mark.parametrize("simplec", [False, True])
 def test_a_rule_never_leaves_its_box(rule_type: type, simplec: bool) -> None:
     rule, rng = rule_type(CRITERION, (1.0, 0.9, 1.0), LOW, HIGH, simplec), random.Random(0)
@@ -83,6 +88,33 @@ def test_a_rule_never_leaves_its_box(rule_type: type, simplec: bool) -> None:
     actions += [rule.act(None, _residuals(rng.uniform(-1, 4))) for _ in range(200)]
     assert all(lo <= a <= hi for action in actions for a, lo, hi in zip(action, LOW, HIGH, strict=True))
     assert actions[0] == list(HIGH) or rule_type is RandomFactors
+
+
+def test_the_default_rule_holds_the_case_own_factors_whatever_the_residuals():
+    rule, rng = OwnFactors(CRITERION, OWN, LOW, HIGH, simplec=False), random.Random(1)
+    assert {tuple(rule.act(None, None if k == 0 else _residuals(rng.uniform(-1, 4)))) for k in range(50)} \
+        == {OWN}
+    assert RulePolicy("own").env_params.interval == 100
+
+
+def test_the_guarded_rise_rises_after_its_warmup_and_hands_the_rest_to_the_case_own_factors():
+    mid = [a + RISE_SHARE * (h - a) for a, h in zip(OWN, HIGH, strict=True)]
+    rule = GuardedRise(CRITERION, OWN, LOW, HIGH, simplec=False)
+    assert rule.act(None, None) == list(OWN)
+    assert rule.act(None, _residuals(3.0)) == pytest.approx(mid)  # the warm-up step done: half-way up
+    assert rule.act(None, _residuals(2.5)) == pytest.approx(mid) and rule.switched is None
+    assert rule.act(None, _residuals(SWITCH_DECADES - 0.1)) == list(OWN)  # near the criterion: own ...
+    assert rule.switched[1].startswith("within") and rule.act(None, _residuals(3.0)) == list(OWN)  # for good
+    hover = GuardedRise(CRITERION, OWN, LOW, HIGH, simplec=False)
+    hover.act(None, None)
+    actions = [hover.act(None, _residuals(2.0)) for _ in range(HOVER_STEPS + 2)]  # no new best
+    assert actions[1] == pytest.approx(mid) and actions[-1] == list(OWN)
+    assert hover.switched[1] == f"no new best in {HOVER_STEPS} steps"
+    grown = GuardedRise(CRITERION, OWN, LOW, HIGH, simplec=False)
+    grown.act(None, None)
+    grown.act(None, _residuals(2.0))
+    assert grown.act(None, _residuals(2.0 + GROWTH_DECADES + 0.1)) == list(OWN)
+    assert "above its best" in grown.switched[1]
 
 
 def test_the_random_baseline_draws_anew_each_step_the_same_for_every_run_and_holds_near_the_criterion():

@@ -20,18 +20,22 @@ from foam_bridge import CaseError, OpenFOAMNotFoundError
 from jaxsimrl.apps.foam.cli.grid_foam import check_factor, relaxation_factor
 from jaxsimrl.apps.foam.cli.solve_campaign import add_campaign_arguments, is_campaign, run_campaign_command
 from jaxsimrl.apps.foam.solve import solve_case
+from jaxsimrl.apps.foam.solve.controller import DEFAULT_CONTROLLER
 from jaxsimrl.apps.foam.solve.criterion import parse_residual
+from jaxsimrl.apps.foam.solve.rules import DEFAULT_RULE
 from jaxsimrl.cli.errors import fail, positive_float, positive_int
 
 
 def register(subparsers: Any) -> None:
     """Add the ``solve`` subcommand."""
     parser = subparsers.add_parser(
-        "solve", help="converge an OpenFOAM simpleFoam case with a trained controller",
-        description="Copy CASE to --out and run it to convergence with a controller setting the relaxation "
-        "factors (default: the controller shipped with jaxsimrl), never worse than the case's own settings: "
-        "a watchdog hands a stalling or growing run to the case's own factors, and a failed run is replaced "
-        "by the case's own run. Convergence is the case's residualControl (or --residual), confirmed at a "
+        "solve", help="converge an OpenFOAM simpleFoam case: its own settings, or a controller",
+        description="Copy CASE to --out and run it to convergence, with its residuals drawn live, a "
+        "report, and with --compare a measure of how far its answer may move. By default with the case's own "
+        "settings: the iterations and the answer of your own run, never more (measured: docs/solve.md). "
+        "--controller or --policy sets the factors instead, at the risk measured there; a watchdog hands a "
+        "stalling or growing run to the case's own factors, and a failed run is replaced by the case's own "
+        "run. Convergence is the case's residualControl (or --residual), confirmed at a "
         "fixed relaxation, or the case's own function objects ending the run (runTimeControl).")
     parser.add_argument("case", metavar="CASE", type=Path, nargs="+",
                         help="a simpleFoam case directory (never modified); several, or a directory holding "
@@ -40,13 +44,20 @@ def register(subparsers: Any) -> None:
                         "(default: ./NAME.solved, NAME the case directory's name)")
     parser.add_argument("--policy", metavar="RUN_DIR", help="a train-foam run directory (default: the "
                         "shipped controller)")
-    parser.add_argument("--controller", choices=("learned", "residual-rule", "bandit", "random"),
-                        default="learned",
-                        help="learned: the shipped controller or --policy (default). No training, on plain "
-                        "SIMPLE and SIMPLEC cases alike: residual-rule raises the factors while the "
-                        "residuals fall and goes back when they grow; bandit tries factors from the "
-                        "case's own to its box's top and plays the one that gains most; random draws "
-                        "them in the box at every step (a baseline)")
+    parser.add_argument("--controller", choices=("own", "learned", "residual-rule", "bandit", "random",
+                                                 "guarded"), default=None,
+                        help="own (default): the case's own factors, so never more iterations than your own "
+                        "run and the same answer (no controller measured here is safe on every case: "
+                        "docs/solve.md). Opt-in, each faster on some cases and slower on others: learned: "
+                        "the shipped controller or --policy (SIMPLEC cases with an inlet); residual-rule "
+                        "raises the factors while the residuals fall and goes back when they grow; bandit "
+                        "tries factors from the case's own to its box's top and plays the one that gains "
+                        "most; guarded raises them half-way for the start-up descent and hands the rest to "
+                        "the case's own; random draws them in the box at every step (a baseline)")
+    parser.add_argument("--solves", choices=("own", "lean"), default="own",
+                        help="the controlled run's linear solves: the case's own (default), or lean (the "
+                        "pressure solve's relTol at least 0.3, every other field's at least 0.1: the same "
+                        "answer, less work per iteration, but more iterations on some cases)")
     parser.add_argument("--compare", action="store_true", help="also run the case with its own settings, "
                         "in parallel, and report the savings; and a third run at its own factors with "
                         "alpha_u 0.05 off, to measure how far two legitimate runs end apart at its criterion "
@@ -127,16 +138,27 @@ def compilation_cache() -> None:
 
 def solve_options(args: argparse.Namespace) -> dict[str, Any]:
     """solve_case's keyword arguments from the command line (but the case, out and say)."""
-    return {"policy": args.policy, "compare": args.compare, "compare_constant": args.compare_constant,
+    shipped = str(DEFAULT_CONTROLLER) if args.controller == "learned" and args.policy is None else None
+    return {"policy": args.policy or shipped, "compare": args.compare,
+            "compare_constant": args.compare_constant,
             "max_iterations": args.max_iterations, "confirm_alpha_u": args.confirm_alpha_u or "own",
             "step_timeout_s": args.step_timeout, "inlet_patch": args.inlet_patch, "residual": args.residual,
-            "from_time": args.from_time, "rule": None if args.controller == "learned" else args.controller,
-            "ranks": args.ranks, "keep_decomposed": args.keep_decomposed, "spread": args.spread}
+            "from_time": args.from_time, "rule": rule_of(args),
+            "ranks": args.ranks, "keep_decomposed": args.keep_decomposed, "spread": args.spread,
+            "solves": args.solves}
+
+
+def rule_of(args: argparse.Namespace) -> str | None:
+    """The rule solve runs: --controller's; the default (the case's own factors) when neither it nor
+    --policy is given; None for a learned controller (--policy, or the shipped one)."""
+    if args.controller == "learned" or (args.controller is None and args.policy is not None):
+        return None
+    return args.controller or DEFAULT_RULE
 
 
 def run_solve(args: argparse.Namespace) -> int:
     """Run solve_case and print its summary (a campaign: jaxsimrl.apps.foam.cli.solve_campaign)."""
-    if args.policy is not None and args.controller != "learned":
+    if args.policy is not None and args.controller not in (None, "learned"):
         fail(f"--policy is a learned controller; --controller {args.controller} needs no policy")
     if args.keep_decomposed and (args.ranks or 1) < 2:
         fail("--keep-decomposed needs --np N with N >= 2")

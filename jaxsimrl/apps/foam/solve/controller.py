@@ -45,7 +45,8 @@ def load_controller(path: str | Path | None = None) -> Controller:
         raise ValueError(f"{where} is not a train-foam run (its policy controls "
                          f"{policy.record.get('env')!r}); "
                          f"solve needs a foam controller")
-    provenance = {"path": str(where), "default": path is None, "checkpoint": policy.checkpoint,
+    shipped = where.resolve() == DEFAULT_CONTROLLER.resolve()
+    provenance = {"path": str(where), "default": shipped, "checkpoint": policy.checkpoint,
                   "update": policy.update, "env_steps": policy.env_steps, "actions": int(policy.action_dim)}
     file = where / PROVENANCE
     if file.is_file():

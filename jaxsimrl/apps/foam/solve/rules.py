@@ -48,7 +48,8 @@ from typing import Any
 from foam_bridge import K_OMEGA_ACTION, FoamEnvConfig
 from jaxsimrl.apps.foam.solve.watchdog import Watchdog, WatchdogSettings
 
-__all__ = ["INTERVALS", "RULES", "Bandit", "RandomFactors", "ResidualRule", "RulePolicy"]
+__all__ = ["DEFAULT_RULE", "INTERVALS", "RULES", "Bandit", "GuardedRise", "OwnFactors", "RandomFactors",
+           "ResidualRule", "RulePolicy"]
 
 #: Iterations between two decisions of the residual rule. 50 leaves 4-6 decisions on a 200-300-iteration
 #: case (pitzDaily, T3A) and outlasts the jump a change of factors makes (~25 iterations): with steps of
@@ -210,11 +211,89 @@ class RandomFactors(_Rule):
         return [self._stream.uniform(lo, hi) for lo, hi in zip(self.low, self.high, strict=True)]
 
 
+@dataclass
+class OwnFactors(_Rule):
+    """The case's own factors at every step: ``solve``'s default (with lean linear solves,
+    jaxsimrl.apps.foam.solve.solvers). Every rule that moves the factors lost on some development case
+    (experiments/solve-safety/README.md: the residual rule, the bandit, GuardedRise, constants at the box's
+    top or half-way), and a change of alpha_u moves the answer the run converges to; the case's own factors
+    cost exactly what the user's run does, in iterations, and the same answer."""
+
+    def decide(self, now: float, gain: float) -> list[float]:
+        return self.start()
+
+
+@dataclass
+class GuardedRise(_Rule):
+    """Raise the factors for the start-up descent only, and hand the final approach to the case's own.
+
+    The first WARMUP_STEPS steps run at the case's own factors (the start-up transient reads the same
+    under any factors); then RISE_SHARE of the way up to the box's top while the run keeps setting new
+    bests; back to the case's own factors for good, from the live fields, at the first of: the run within
+    SWITCH_DECADES of its criterion (own factors converge the user's case, and near the criterion higher
+    ones can hover above it: contraction2D and channelRib at half-way hover 0.05-0.5 decade above theirs
+    for 3000 iterations, where their own converge in 219 and 534), no new best by NOISE_DECADES in
+    HOVER_STEPS steps, or GROWTH_DECADES above its best. ``switched`` says when and why."""
+
+    switched: tuple[int, str] | None = None
+    _best: float = math.inf
+    _since: int = 0
+    _steps: int = 0
+
+    def act(self, obs: Any, residuals: Mapping[str, float] | None) -> list[float]:
+        if residuals is None:
+            self._action = self.start()
+            return list(self._action)
+        self._steps += 1
+        now = _distance(residuals, self.criterion)
+        if self.switched is not None or not math.isfinite(now):
+            return list(self._action)
+        reason = self._why_back(now)
+        if reason is not None:
+            self.switched = (self._steps, reason)
+            self._action = self.start()
+        elif self._steps >= WARMUP_STEPS:
+            self._action = _clip(_toward(self.start(), self.high, RISE_SHARE), self.low, self.high)
+        return list(self._action)
+
+    def _why_back(self, now: float) -> str | None:
+        if now <= SWITCH_DECADES:
+            return f"within {SWITCH_DECADES:g} decades of the criterion"
+        if now > self._best + GROWTH_DECADES:
+            return f"{now - self._best:.2f} decades above its best"
+        if now < self._best - NOISE_DECADES:
+            self._best, self._since = now, 0
+            return None
+        self._since += 1
+        if self._since >= HOVER_STEPS and self._steps > WARMUP_STEPS:
+            return f"no new best in {self._since} steps"
+        return None
+
+    def decide(self, now: float, gain: float) -> list[float]:  # act decides (see the class docstring)
+        raise NotImplementedError
+
+
+#: GuardedRise: steps at the case's own factors first (the start-up transient), the share of the way to the
+#: box's top it rises by, the distance to the criterion below which the case's own factors take over, and
+#: the steps without a new best after which they do.
+WARMUP_STEPS = 1
+RISE_SHARE = 0.5
+#: OwnFactors' step: it decides nothing, so only the live view's redraws and the watchdog's look need one.
+OWN_INTERVAL = 100
+SWITCH_DECADES = 1.0
+HOVER_STEPS = 3
+GUARDED_INTERVAL = 25
+
+
 #: The random baseline's seed: the same draws for every case and every run.
 RANDOM_SEED = 0
 #: The rules solve offers (``--controller NAME``), and the step length each decides at.
-RULES: dict[str, type[_Rule]] = {"residual-rule": ResidualRule, "bandit": Bandit, "random": RandomFactors}
-INTERVALS = {"residual-rule": RULE_INTERVAL, "bandit": BANDIT_INTERVAL, "random": RULE_INTERVAL}
+RULES: dict[str, type[_Rule]] = {"own": OwnFactors, "residual-rule": ResidualRule, "bandit": Bandit,
+                                 "random": RandomFactors, "guarded": GuardedRise}
+INTERVALS = {"own": OWN_INTERVAL, "residual-rule": RULE_INTERVAL, "bandit": BANDIT_INTERVAL,
+             "random": RULE_INTERVAL, "guarded": GUARDED_INTERVAL}
+#: solve's default controller (jaxsimrl.apps.foam.solve.runner): the case's own factors.
+DEFAULT_RULE = "own"
 
 
 @dataclass(frozen=True)
@@ -238,8 +317,11 @@ class RulePolicy:
         """What solve.json records of the rule: its name, step length and constants."""
         constants = {"noise_decades": NOISE_DECADES, "growth_decades": GROWTH_DECADES,
                      "freeze_decades": FREEZE_DECADES}
-        constants.update({"residual-rule": {"raise_share": RAISE_SHARE}, "bandit": {"arms": ARMS},
-                          "random": {"seed": RANDOM_SEED}}[self.name])
+        constants.update({"own": {}, "residual-rule": {"raise_share": RAISE_SHARE}, "bandit": {"arms": ARMS},
+                          "random": {"seed": RANDOM_SEED},
+                          "guarded": {"warmup_steps": WARMUP_STEPS, "rise_share": RISE_SHARE,
+                                      "switch_decades": SWITCH_DECADES,
+                                      "hover_steps": HOVER_STEPS}}[self.name])
         return {"rule": self.name, "interval": INTERVALS[self.name], **constants,
                 "about": "no training: jaxsimrl.apps.foam.solve.rules"}
 

@@ -49,7 +49,7 @@ from jaxsimrl.apps.foam.solve.report import (
     write_report,
     write_status,
 )
-from jaxsimrl.apps.foam.solve.rules import RulePolicy
+from jaxsimrl.apps.foam.solve.rules import DEFAULT_RULE, RulePolicy
 from jaxsimrl.apps.foam.solve.settings import (
     DEFAULT_MAX_ITERATIONS,
     OWN_CHECK,
@@ -62,7 +62,9 @@ from jaxsimrl.apps.foam.solve.settings import (
     read_case_settings,
     solve_config,
     start_of,
+    with_own,
 )
+from jaxsimrl.apps.foam.solve.solvers import make_lean
 from jaxsimrl.apps.foam.solve.watchdog import WatchdogSettings
 from jaxsimrl.runs.signals import stop_word
 
@@ -70,6 +72,8 @@ WORK_DIR = ".solve-work"
 COMPARE_DIR = "compare"
 #: The comparison run at the case's own factors with alpha_u nudged (``--compare``'s spread).
 SPREAD = "spread"
+#: ``solves``: the controlled run's linear solves lean (jaxsimrl.apps.foam.solve.solvers) or the case's own.
+LEAN, OWN_SOLVES = "lean", "own"
 
 
 def solve_case(case: str | Path, out: str | Path, policy: Any = None,
@@ -80,9 +84,12 @@ def solve_case(case: str | Path, out: str | Path, policy: Any = None,
                step_timeout_s: float = 300.0, inlet_patch: str | None = None,
                say: Callable[[str], None] | None = None, residual: Residual | str | None = None,
                from_time: float | None = None, rule: str | None = None, ranks: int | None = None,
-               keep_decomposed: bool = False, spread: bool = True) -> SolveReport:
-    """Run ``case`` with the controller (``policy``: a run directory, a :class:`Controller`, a policy from
-    ``jaxsimrl.load_policy``, or None for the shipped one) into ``out``; see the module docstring. Bad
+               keep_decomposed: bool = False, spread: bool = True, solves: str = "own") -> SolveReport:
+    """Run ``case`` with a controller into ``out``; see the module docstring. The controller: ``rule`` (a
+    no-training rule, jaxsimrl.apps.foam.solve.rules), else ``policy`` (a train-foam run directory, a
+    :class:`Controller` or a policy from ``jaxsimrl.load_policy``; the shipped one is
+    jaxsimrl.apps.foam.solve.controller.DEFAULT_CONTROLLER), else the default: the case's own factors
+    (rules.DEFAULT_RULE): the user's own run, its iterations and its answer. Bad
     input (a missing or decomposed case, a non-empty ``out``, a case the bridge cannot drive, a bad
     policy): one-line ValueError before any result is claimed. ``confirm_alpha_u``: the convergence
     check's alpha_u (foam_bridge._confirm; "own", the default: the case's own alpha_u, see
@@ -98,7 +105,14 @@ def solve_case(case: str | Path, out: str | Path, policy: Any = None,
     ``keep_decomposed``: leave the ranks' processor* directories in ``out`` too; ``spread`` (with
     ``compare``): also run the case at its own factors with alpha_u a little off
     (jaxsimrl.apps.foam.solve.settings.nudged_factors), to measure how far two legitimate runs end apart
-    at its criterion (jaxsimrl.apps.foam.solve.agreement.measure_spread): a third run beside the two."""
+    at its criterion (jaxsimrl.apps.foam.solve.agreement.measure_spread): a third run beside the two;
+    ``solves``: OWN_SOLVES (the case's own linear solves, the default) or LEAN (no tighter than
+    jaxsimrl.apps.foam.solve.solvers says: the same answer, less work per iteration, but on the coarse step
+    21 % more iterations)."""
+    if solves not in (LEAN, OWN_SOLVES):
+        raise ValueError(f"solves: expected {LEAN!r} or {OWN_SOLVES!r}, got {solves!r}")
+    if rule is None and policy is None:
+        rule = DEFAULT_RULE
     say = say or (lambda text: None)
     case, out = _check_paths(case, out)
     ranks = check_ranks(case, ranks)
@@ -112,7 +126,7 @@ def solve_case(case: str | Path, out: str | Path, policy: Any = None,
         report = _solve(source, out, policy, compare, compare_constant, max_iterations, confirm_alpha_u,
                         watchdog or WatchdogSettings(), (action_box, step_timeout_s, inlet_patch), residual,
                         start_of(source, from_time), say, started, others, rule, (ranks, keep_decomposed),
-                        spread)
+                        spread, solves)
     except KeyboardInterrupt as stop:  # Ctrl-C or SIGTERM: the finally blocks below stop every solver
         write_status(out, "interrupted", case, stop_word(stop))
         raise
@@ -155,7 +169,8 @@ def _solve(case: Path, out: Path, policy: Any, compare: bool, constant: Sequence
            max_iterations: int | None, confirm: float | str | None, watchdog: WatchdogSettings,
            env: tuple[Any, float, str], residual: Residual | str | None, begin: tuple[int, str],
            say: Callable[[str], None], started: float, others: list[OwnProcess],
-           rule: str | None, parallel_run: tuple[int, bool], spread: bool = True) -> SolveReport:
+           rule: str | None, parallel_run: tuple[int, bool], spread: bool = True,
+           solves: str = "own") -> SolveReport:
     # What waits on what: the controller loads (JAX, its acting arrays, the first action compiled) in a
     # thread from here on, beside the case check (copy, mesh, one SIMPLE iteration: once, the controlled
     # run's env starts from its build) and the worker's start; the first step waits for both, every
@@ -176,6 +191,10 @@ def _solve(case: Path, out: Path, policy: Any, compare: bool, constant: Sequence
     cfg, checked = solve_config(case, trained, out / WORK_DIR, budget, confirm, *env, residual=residual,
                                 start_time=start, settings=settings)
     cfg = dataclasses.replace(cfg, ranks=ranks).validate()
+    if rule is not None:  # a rule goes back to the case's own factors: exactly them
+        cfg = with_own(cfg, settings)
+    solved = solved_field_names(checked.info.solved_fields)
+    lean = make_lean(checked.directory, solved) if solves == LEAN else {}
     phases["case_check_s"], mark = time.monotonic() - mark, time.monotonic()
     own = Own(settings.flat, None if residual is None else dict(cfg.convergence), start, ranks,
               nudged_factors(settings) if compare and spread else None)
@@ -224,6 +243,7 @@ def _solve(case: Path, out: Path, policy: Any, compare: bool, constant: Sequence
     report.data["settings"]["criterion_from"] = criterion_from
     report.data["settings"]["started_from"] = started_from
     report.data["settings"]["algorithm"] = settings.variant
+    report.data["settings"]["linear_solves"] = {"mode": solves, "relTol": lean}
     report.data["result"]["converged_by"] = converged_by(run, rescue, criterion_from)
     for name, other in results.items():
         report.data["compare"][name]["converged_by"] = own_converged_by(other, criterion_from)

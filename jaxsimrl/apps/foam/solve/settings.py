@@ -321,6 +321,17 @@ def nudged_factors(settings: CaseSettings) -> tuple[tuple[float, float, float], 
     return (nudged, p, t), f"alpha_u {nudged:g}"
 
 
+def with_own(cfg: FoamEnvConfig, settings: CaseSettings) -> FoamEnvConfig:
+    """``cfg`` with its box widened to hold the case's own factors (a factor the case does not set: 1), so
+    that "the case's own factors" a rule or the watchdog goes back to are exactly the user's: a SIMPLEC
+    case with an unrelaxed pressure is run at p 1, not at the box's top 0.95."""
+    size = len(cfg.action_low)
+    own = [1.0 if value is None else value for value in settings.factors][:size]
+    low = tuple(min(lo, factor) for lo, factor in zip(cfg.action_low, own, strict=True))
+    high = tuple(max(hi, factor) for hi, factor in zip(cfg.action_high, own, strict=True))
+    return dataclasses.replace(cfg, action_low=low, action_high=high).validate()
+
+
 def own_action(settings: CaseSettings, cfg: FoamEnvConfig, size: int) -> list[float]:
     """The case's own factors as an action of ``size`` entries, in the env's box (a factor the case does not
     set means no relaxation: 1, clipped to the box's top)."""
