@@ -262,7 +262,7 @@ def test_the_spread_line_says_whether_the_criterion_fixes_the_answer(tmp_path: P
     close = _case(tmp_path / "close", "250", dict(fields, k=fields["k"] * (1 + TOL / 2)))
     settled = measure_spread(own, close, ["U", "p", "k"], CRITERION, (True, True), "alpha_u 0.95")
     assert settled["settled"]
-    assert spread_line(settled, CRITERION).startswith("the criterion fixes the answer to within its")
+    assert spread_line(settled, CRITERION).startswith("the criterion fixes the answer: the own run and")
     far = _case(tmp_path / "far", "250", dict(fields, p=fields["p"] * 1.12))  # 12 % apart in p
     loose = measure_spread(own, far, ["U", "p", "k"], CRITERION, (True, True), "alpha_u 0.95")
     line = spread_line(loose, CRITERION)

@@ -39,19 +39,20 @@ def test_lean_solves_loosen_only_what_is_tighter_and_keep_the_rest(tmp_path: Pat
     assert make_lean(case, ["U", "p", "k"]) == {}  # lean already: nothing more
 
 
-@pytest.mark.slow  # a coarse-step solve and its own run (~1 min)
-def test_the_default_runs_the_case_own_factors_to_its_own_answer(tmp_path: Path) -> None:
+@pytest.mark.slow  # a coarse-step solve with --compare (~1 min)
+def test_the_default_is_the_case_own_run_with_solve_s_report(tmp_path: Path) -> None:
     case = _coarse_step(tmp_path / "step")
     out = tmp_path / "out"
     report = solve_case(case, out, compare=True, spread=False, step_timeout_s=120)
     data = json.loads((out / "solve.json").read_text())
-    own = data["compare"]["own"]
+    own, result = data["compare"]["own"], data["result"]
     assert report.converged and own["converged"] and data["controller"]["rule"] == "own"
-    assert {tuple(step["action"]) for step in data["steps"]} == {(0.9, 0.8, 0.8)}  # the case's own, always
-    assert data["settings"]["linear_solves"] == {"mode": "own", "relTol": {}}
-    assert report.iterations == own["iterations"]  # the user's own run, paused at every step boundary
-    assert own["agreement"]["agree"] and not data["fallback"]
-    assert own["agreement"]["fields"]["U"]["value"] < 1e-6  # the same answer: the same run
+    assert result["fields_from"] == "the case's own settings (the default)"
+    assert [event["kind"] for event in data["fallback"]] == ["own settings"] and not data["steps"]
+    assert report.iterations == own["iterations"] and not data["confirmations"]  # the user's run itself
+    assert own["agreement"]["agree"] and own["agreement"]["same_run"]
+    assert "the default: the case's own settings" in report.summary()
+    assert (out / result["time_directory"] / "U").is_file() and (out / "log.simpleFoam").is_file()
 
 
 @pytest.mark.slow  # a coarse-step solve with lean linear solves and its own run (~1 min)
@@ -62,6 +63,8 @@ def test_lean_solves_leave_the_answer_but_can_cost_iterations(tmp_path: Path) ->
     data = json.loads((out / "solve.json").read_text())
     own = data["compare"]["own"]
     assert data["settings"]["linear_solves"] == {"mode": "lean", "relTol": {"p": [0.1, LEAN_REL_TOL]}}
+    assert {tuple(step["action"]) for step in data["steps"]} == {(0.9, 0.8, 0.8)}  # the case's own factors
+    assert not data["confirmations"]  # its own factors need no check of their normalisation
     assert "lean linear solves" not in (out / "system" / "fvSolution").read_text()  # out keeps the user's own
     assert report.converged and own["agreement"]["agree"]  # the same fixed point, another path to it
     # why lean is not the default: its pressure solves at relTol 0.3 cost this case 246 iterations for 204

@@ -104,12 +104,13 @@ def test_the_guarded_rise_rises_after_its_warmup_and_hands_the_rest_to_the_case_
     assert rule.act(None, _residuals(3.0)) == pytest.approx(mid)  # the warm-up step done: half-way up
     assert rule.act(None, _residuals(2.5)) == pytest.approx(mid) and rule.switched is None
     assert rule.act(None, _residuals(SWITCH_DECADES - 0.1)) == list(OWN)  # near the criterion: own ...
-    assert rule.switched[1].startswith("within") and rule.act(None, _residuals(3.0)) == list(OWN)  # for good
+    assert rule.switched[1].startswith("planned: within")
+    assert rule.act(None, _residuals(3.0)) == list(OWN)  # for good
     hover = GuardedRise(CRITERION, OWN, LOW, HIGH, simplec=False)
     hover.act(None, None)
     actions = [hover.act(None, _residuals(2.0)) for _ in range(HOVER_STEPS + 2)]  # no new best
     assert actions[1] == pytest.approx(mid) and actions[-1] == list(OWN)
-    assert hover.switched[1] == f"no new best in {HOVER_STEPS} steps"
+    assert hover.switched[1] == f"detector: no new best in {HOVER_STEPS} steps"
     grown = GuardedRise(CRITERION, OWN, LOW, HIGH, simplec=False)
     grown.act(None, None)
     grown.act(None, _residuals(2.0))

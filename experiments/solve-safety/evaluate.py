@@ -2,7 +2,8 @@
 """Issue 46's evaluation of ``jaxsimrl solve``'s default on one set of cases, as a user runs it.
 
     WM_PROJECT_DIR=/usr/share/openfoam .venv/bin/python experiments/solve-safety/evaluate.py \
-        runs/heldout-v2 --set experiments/controller/heldout-v2/heldout.json --out DIR
+        runs/heldout-v2 --set experiments/controller/heldout-v2/heldout.json --out DIR \
+        --beside bandit constant guarded lean
     .venv/bin/python experiments/solve-safety/evaluate.py runs/tutorials --tutorials --out DIR
 
 Per case (its own mesh, criterion and budget), every run through ``jaxsimrl solve`` or as
@@ -12,10 +13,11 @@ Per case (its own mesh, criterion and budget), every run through ``jaxsimrl solv
   beside it (three solvers on the machine's cores: the agreement figures come from here, and the solver
   CPU seconds of cases whose own run takes WALL_MIN_S or more);
 - ``cpu``: for cases whose own run takes less, the default alone and the own run alone, alternated, 3 times
-  each: solver CPU as the median of the 3 pairs' ratios;
-- ``bandit`` (``solve --controller bandit``) and ``constant`` (the training family's constant for the
-  case's algorithm, jaxsimrl.apps.foam.solve.settings.FAMILY_CONSTANT, a plain run): what a user has
-  without the default.
+  each: solver CPU as the median of the 3 pairs' ratios (``--no-pairs``: not run);
+- ``--beside``: what a user has besides the default, each run once: ``bandit``, ``guarded`` and
+  ``residual-rule`` (``solve --controller NAME``), ``lean`` (``solve --solves lean``) and ``constant``
+  (the training family's constant for the case's algorithm, jaxsimrl.apps.foam.solve.settings.
+  FAMILY_CONSTANT, a plain run).
 
 Also the default's detector (its switch back to the case's own factors, solve.json's ``fallback``): the
 iteration it fired, why, the first step boundary at which the controlled run was behind the own run
@@ -55,21 +57,22 @@ def distances(residuals: dict[str, list[float | None]], criterion: dict[str, flo
     return [criterion_distance(row, criterion) for row in rows]
 
 
-def detector(data: dict[str, Any]) -> dict[str, Any]:
-    """When the default's detector fired, why, when the run first fell behind its own, the latency."""
+def detector(data: dict[str, Any], own_residuals: dict[str, list[float | None]]) -> dict[str, Any]:
+    """When a run's detector fired (its rule's own "detector: ..." switch back to the case's own factors, or
+    the watchdog), why, when the run first fell behind the own run (``own_residuals``: its history), the
+    latency from there, and whether it fired where the run was never behind (a false fire)."""
     criterion = data["settings"]["criterion"]
-    ours = distances(data["residuals"]["controlled"], criterion)
-    own = distances(data["residuals"].get("own", {}), criterion)
+    ours, own = distances(data["residuals"]["controlled"], criterion), distances(own_residuals, criterion)
     boundaries = [step["to_iteration"] for step in data["steps"] if "to_iteration" in step]
     behind = next((k for k in boundaries if 0 < k <= min(len(ours), len(own))
                    and ours[k - 1] > own[k - 1] + BEHIND_DECADES), None)
-    fired = next((event for event in data["fallback"] if event["kind"] in ("own factors", "watchdog")), None)
+    fired = next((event for event in data["fallback"] if event["kind"] == "watchdog"
+                  or event["reason"].startswith("detector")), None)
     at = None if fired is None else fired["at_iteration"]
-    return {"fired_at": at, "why": None if fired is None else fired["reason"],
-            "kind": None if fired is None else fired["kind"], "behind_from": behind,
+    return {"fired_at": at, "why": None if fired is None else fired["reason"], "behind_from": behind,
             "latency": None if at is None or behind is None or behind > at else at - behind,
-            "false_fire": fired is not None and fired["kind"] == "own factors"
-            and "detector" in fired["reason"] and (behind is None or behind > at)}
+            "false_fire": fired is not None and (behind is None or behind > at),
+            "events": [[event["kind"], event["at_iteration"], event["reason"]] for event in data["fallback"]]}
 
 
 def default_row(case: Path, scratch: Path) -> dict[str, Any]:
@@ -87,7 +90,8 @@ def default_row(case: Path, scratch: Path) -> dict[str, Any]:
             "tolerance": agreement.get("tolerance"),
             "spread": {key: spread.get(key) for key in ("measured", "nudge", "settled", "fields",
                                                         "function_objects", "iterations", "reason")},
-            "detector": detector(data), "steps": [[s["from_iteration"], s["action"]] for s in data["steps"]]}
+            "detector": detector(data, data["residuals"].get("own", {})),
+            "own_residuals": data["residuals"].get("own", {})}
 
 
 def cpu_pairs(case: Path, scratch: Path) -> list[dict[str, float]]:
@@ -101,27 +105,41 @@ def cpu_pairs(case: Path, scratch: Path) -> list[dict[str, float]]:
     return pairs
 
 
-def baselines(case: Path, scratch: Path) -> dict[str, Any]:
-    """The bandit through solve, and the family's constant for the case's algorithm as a plain run."""
-    bandit = solve_case(case, scratch / "bandit", rule="bandit", step_timeout_s=900).data["result"]
-    constant = list(FAMILY_CONSTANT[read_case_settings(case).variant])
-    plain = run_own(case, scratch / "constant", "constant", TIMEOUT_S, factors=constant)
-    return {"bandit": {"converged": bandit["converged"], "iterations": bandit["iterations"],
-                       "cpu_s": round(bandit["solver_cpu_time_s"], 2)},
-            "constant": {"factors": constant, "converged": plain.converged, "iterations": plain.iterations,
-                         "cpu_s": round(plain.cpu_time_s, 2)}}
+def _solved(data: dict[str, Any]) -> dict[str, Any]:
+    result = data["result"]
+    return {"converged": result["converged"], "iterations": result["iterations"],
+            "cpu_s": round(result["solver_cpu_time_s"], 2), "fields_from": result["fields_from"]}
 
 
-def evaluate(case: Path) -> dict[str, Any]:
+def beside(case: Path, scratch: Path, which: list[str], own_residuals: dict[str, Any]) -> dict[str, Any]:
+    """What a user has beside the default, each run once: the ``bandit``, ``guarded`` and ``residual-rule``
+    through solve, ``lean`` (solve's own factors with --solves lean), and ``constant`` (the training
+    family's constant for the case's algorithm, a plain run)."""
+    rows: dict[str, Any] = {}
+    for name in which:
+        if name == "constant":
+            factors = list(FAMILY_CONSTANT[read_case_settings(case).variant])
+            plain = run_own(case, scratch / name, name, TIMEOUT_S, factors=factors)
+            rows[name] = {"factors": factors, "converged": plain.converged, "iterations": plain.iterations,
+                          "cpu_s": round(plain.cpu_time_s, 2)}
+        elif name == "lean":
+            rows[name] = _solved(solve_case(case, scratch / name, solves="lean", step_timeout_s=900).data)
+        else:
+            data = solve_case(case, scratch / name, rule=name, step_timeout_s=900).data
+            rows[name] = {**_solved(data), "detector": detector(data, own_residuals)}
+    return rows
+
+
+def evaluate(case: Path, which: list[str], pairs: bool) -> dict[str, Any]:
     with tempfile.TemporaryDirectory(prefix=f"safety-{case.name}-") as scratch:
         row = {"case": case.name, "algorithm": read_case_settings(case).variant,
                **default_row(case, Path(scratch))}
-        if row["own"]["cpu_s"] < WALL_MIN_S:
+        if pairs and row["own"]["cpu_s"] < WALL_MIN_S:
             row["cpu_pairs"] = cpu_pairs(case, Path(scratch))
             row["cpu_ratio"] = statistics.median(pair["ratio"] for pair in row["cpu_pairs"])
-        else:
+        elif row["own"]["cpu_s"]:
             row["cpu_ratio"] = round(row["cpu_s"] / row["own"]["cpu_s"], 3)
-        row.update(baselines(case, Path(scratch)))
+        row.update(beside(case, Path(scratch), which, row.pop("own_residuals")))
     row["iteration_ratio"] = round(row["iterations"] / row["own"]["iterations"], 3)
     return row
 
@@ -132,6 +150,11 @@ def main() -> None:
     parser.add_argument("--set", type=Path, help="a heldout.json: its evaluation cases")
     parser.add_argument("--tutorials", action="store_true", help="the solve benchmark's five tutorials")
     parser.add_argument("--cases", dest="only", nargs="+", help="these cases only")
+    parser.add_argument("--beside", nargs="*", default=[],
+                        choices=("bandit", "constant", "guarded", "lean", "residual-rule"),
+                        help="also run these, once each")
+    parser.add_argument("--no-pairs", action="store_false", dest="pairs",
+                        help="no alternated CPU pairs (the CPU ratio from the --compare run)")
     parser.add_argument("--out", type=Path, required=True)
     args = parser.parse_args()
     if args.only:
@@ -146,7 +169,7 @@ def main() -> None:
     for name in names:
         if name in held:
             continue
-        row = evaluate(args.root / name)
+        row = evaluate(args.root / name, args.beside, args.pairs)
         with path.open("a") as stream:
             stream.write(json.dumps(row) + "\n")
         print(f"{name}: default {row['iterations']} / own {row['own']['iterations']} "

@@ -133,10 +133,19 @@ class _Steering(StatelessController):
         if self.dog.fired is None:
             assert self.actor is not None
             action, self.source = self.actor.act(obs[0], self.residuals), "controller"
+            self._note_switch()
         else:
             action, self.source = list(self.fallback), "own factors (watchdog)"
         self.sent = factors_of(self.cfg, action).tolist() if self.cfg.action_share else list(action)
         return np.asarray([action], np.float64)
+
+    def _note_switch(self) -> None:
+        """A rule that goes back to the case's own factors by itself (rules.GuardedRise: ``switched``, its
+        step and why) is recorded once, as the watchdog's fallback is."""
+        switched = getattr(self.actor, "switched", None)
+        if switched is not None and not any(event["kind"] == "own factors" for event in self.run.events):
+            self.run.events.append({"kind": "own factors", "at_iteration": self.run.iterations,
+                                    "reason": switched[1], "then": f"the case's own factors {self.fallback}"})
 
     def observe(self, uid: int, step: StepRecord) -> None:
         """A step that answered (the pool shows no other): record it, say it, watch it."""

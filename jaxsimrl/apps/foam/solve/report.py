@@ -56,7 +56,8 @@ class SolveReport:
                  *_criterion_line(self.data),
                  f"  overhead beyond the solver's own work: {_percent(result['overhead_fraction'])} of wall "
                  f"time"]
-        lines += [f"  fallback ({event['kind']}) at {event['at_iteration']}: {event['reason']}"
+        lines += [f"  {event['reason']}" if event["kind"] == "own settings" else
+                  f"  fallback ({event['kind']}) at {event['at_iteration']}: {event['reason']}"
                   for event in self.data["fallback"]]
         for name, other in self.data.get("compare", {}).items():
             lines.append(f"  {name}: {'converged' if other['converged'] else 'not converged'} after "
@@ -93,7 +94,8 @@ def _criterion_line(data: dict[str, Any]) -> list[str]:
 
 
 def _percent(fraction: float | None) -> str:
-    return "not measured (a fallback rerun)" if fraction is None else f"{100 * fraction:.1f} %"
+    return "not measured (the result is a plain run of the case)" if fraction is None else \
+        f"{100 * fraction:.1f} %"
 
 
 def write_status(out: Path, status: str, case: Path, error: str = "") -> None:
@@ -158,7 +160,8 @@ def build_report(case: Path, out: Path, controller: Any, cfg: Any, run: Any, res
 def _fields_from(run: Any, rescue: Any) -> str:
     """Who set the factors of the run whose fields ``out`` holds."""
     if rescue is not None and run.outcome == "not run":
-        return "the case's own settings (the controller does not apply)"
+        default = any(event["kind"] == "own settings" for event in run.events)
+        return f"the case's own settings ({'the default' if default else 'the controller does not apply'})"
     if rescue is not None:
         return "the case's own settings (fallback rerun)"
     switched = [event["at_iteration"] for event in run.events if event["kind"] == "watchdog"]

@@ -258,15 +258,15 @@ class GuardedRise(_Rule):
 
     def _why_back(self, now: float) -> str | None:
         if now <= SWITCH_DECADES:
-            return f"within {SWITCH_DECADES:g} decades of the criterion"
+            return f"planned: within {SWITCH_DECADES:g} decades of the criterion"
         if now > self._best + GROWTH_DECADES:
-            return f"{now - self._best:.2f} decades above its best"
+            return f"detector: {now - self._best:.2f} decades above its best"
         if now < self._best - NOISE_DECADES:
             self._best, self._since = now, 0
             return None
         self._since += 1
         if self._since >= HOVER_STEPS and self._steps > WARMUP_STEPS:
-            return f"no new best in {self._since} steps"
+            return f"detector: no new best in {self._since} steps"
         return None
 
     def decide(self, now: float, gain: float) -> list[float]:  # act decides (see the class docstring)

@@ -74,6 +74,10 @@ COMPARE_DIR = "compare"
 SPREAD = "spread"
 #: ``solves``: the controlled run's linear solves lean (jaxsimrl.apps.foam.solve.solvers) or the case's own.
 LEAN, OWN_SOLVES = "lean", "own"
+#: What the default does, as solve says it: the case's own run (no stepping, no confirmation: it is the run
+#: the user would make, so its iterations and its answer are theirs exactly).
+OWN_SETTINGS = ("the default: the case's own settings, run as they are (no controller measured is safe on "
+                "every case: docs/solve.md; --controller NAME for one)")
 
 
 def solve_case(case: str | Path, out: str | Path, policy: Any = None,
@@ -186,7 +190,8 @@ def _solve(case: Path, out: Path, policy: Any, compare: bool, constant: Sequence
         raise ValueError(f"case {case}: its endTime is not after the time {start} it starts from: give "
                          f"--max-iterations N (or --from-time)")
     budget = max_iterations or settings.budget or DEFAULT_MAX_ITERATIONS
-    confirm = check_factor(settings) if confirm == OWN_CHECK else confirm
+    # the check holds a controller's factors to the case's own normalisation: the case's own factors need none
+    confirm = None if rule == DEFAULT_RULE else check_factor(settings) if confirm == OWN_CHECK else confirm
     ranks, keep_decomposed = parallel_run
     cfg, checked = solve_config(case, trained, out / WORK_DIR, budget, confirm, *env, residual=residual,
                                 start_time=start, settings=settings)
@@ -209,7 +214,8 @@ def _solve(case: Path, out: Path, policy: Any, compare: bool, constant: Sequence
     episode = out / WORK_DIR / "env_0" / "episode"
     live = LivePlot(out, case, reported(cfg.convergence), list(cfg.convergence), episode / "log.simpleFoam")
     try:
-        run = _controlled(cfg, trained, settings, controller, watchdog, say, checked, live.update)
+        run = _controlled(cfg, trained, settings, controller, watchdog, say, checked, live.update,
+                          plain=rule == DEFAULT_RULE and solves == OWN_SOLVES)
     finally:
         live.close()
     controller = controller if loading is None else loading.result()
@@ -255,9 +261,15 @@ def _solve(case: Path, out: Path, policy: Any, compare: bool, constant: Sequence
 
 def _controlled(cfg: Any, trained: Any, settings: Any, controller: Any, watchdog: WatchdogSettings,
                 say: Callable[[str], None], checked: CheckedCase,
-                on_step: Callable[[ControlledRun], None]) -> ControlledRun:
-    """The controlled run, or none (outcome "not run") when the controller does not apply to the case.
+                on_step: Callable[[ControlledRun], None], plain: bool = False) -> ControlledRun:
+    """The controlled run, or none (outcome "not run") when the controller does not apply to the case or
+    ``plain`` (the default: the case's own run is the result, _own_rescue).
     ``controller``: a Controller, or its BackgroundLoad (waited for once the worker has built the case)."""
+    if plain:
+        say(OWN_SETTINGS)
+        event = {"kind": "own settings", "at_iteration": 0, "reason": OWN_SETTINGS,
+                 "then": "the case's own run"}
+        return ControlledRun(outcome="not run", events=[event])
     fallback = own_action(settings, cfg, len(cfg.action_low))
     rule = controller.policy if isinstance(controller, Controller) else None
     if isinstance(rule, RulePolicy):  # a rule reads residuals only: it applies to any case
