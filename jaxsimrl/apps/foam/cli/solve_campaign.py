@@ -32,7 +32,8 @@ def add_campaign_arguments(parser: argparse.ArgumentParser) -> None:
         "them up (default --out: ./campaign)")
     group.add_argument("--pool", type=positive_int, metavar="N",
                        help="workers, each solving one case at a time (default 1); with --compare each "
-                       "also runs the case's own settings beside it, so N workers busy 2N cores")
+                       "also runs the case's own settings and the spread run beside a controller's run, so N "
+                       "workers busy up to 3N cores")
     group.add_argument("--backend", choices=BACKENDS, help="where the workers run: local processes "
                        "(default) or a Ray cluster (OUT and the cases on a file system every node sees)")
     group.add_argument("--ray-address", metavar="ADDR", help="a running Ray cluster (with --backend ray; "
