@@ -30,6 +30,7 @@ from pathlib import Path
 from foam_bridge._export import latest_time
 from jaxsimrl.apps.foam.solve import solve_case
 from jaxsimrl.apps.foam.solve.agreement import field_difference, function_object_differences
+from jaxsimrl.apps.foam.solve.controller import DEFAULT_CONTROLLER
 from jaxsimrl.apps.foam.solve.own import OwnProcess
 
 TUTORIAL = Path("/usr/share/doc/openfoam-examples/examples/incompressible/simpleFoam/pitzDaily")
@@ -85,7 +86,7 @@ def measure(root: Path) -> dict:
         case = prepare(root, f"pitzDaily{label}", scale)
         out = root / f"pitzDaily{label}.solved"
         shutil.rmtree(out, ignore_errors=True)
-        solve_case(case, out, compare=True, compare_constant=(0.7, 0.5, 0.7))
+        solve_case(case, out, policy=DEFAULT_CONTROLLER, compare=True, compare_constant=(0.7, 0.5, 0.7))
         suffix = f" {label}" if label else ""
         runs |= {f"controller{suffix}": out, f"own{suffix}": out / "compare" / "own",
                  f"constant{suffix}": out / "compare" / "constant"}

@@ -23,6 +23,7 @@ from pathlib import Path
 
 from jaxsimrl.apps.foam.solve import solve_case
 from jaxsimrl.apps.foam.solve.agreement import summary_line
+from jaxsimrl.apps.foam.solve.controller import DEFAULT_CONTROLLER
 from jaxsimrl.apps.foam.solve.rules import RULES
 
 TUTORIALS = Path("/usr/share/doc/openfoam-examples/examples/incompressible/simpleFoam")
@@ -36,6 +37,7 @@ def bench(name: str, root: Path, policy: Path | None = None, rule: str | None = 
     shutil.rmtree(case, ignore_errors=True)
     shutil.rmtree(root / f"{name}.solved", ignore_errors=True)
     shutil.copytree(TUTORIALS / name, case)
+    policy = policy if policy is not None or rule is not None else DEFAULT_CONTROLLER  # the shipped one
     data = solve_case(case, root / f"{name}.solved", policy=policy, compare=True, rule=rule,
                       compare_constant=constant).data
     result, own = data["result"], data["compare"]["own"]

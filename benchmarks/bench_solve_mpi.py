@@ -28,7 +28,7 @@ def measure(case: Path, work: Path) -> dict[str, Any]:
     out = work / f"{case.name}.np2"
     started = time.monotonic()
     subprocess.run([sys.executable, "-m", "jaxsimrl", "solve", str(case), "--out", str(out), "--np", "2",
-                    "--compare", "--quiet"], check=False)
+                    "--compare", "--quiet", "--controller", "learned"], check=False)
     solve_wall = time.monotonic() - started
     report = json.loads((out / "solve.json").read_text())
     serial = run_own(case, work / f"{case.name}.own-serial", "own", 3600.0)

@@ -53,7 +53,8 @@ def user_step(dest: Path, mesh_scale: float) -> Path:
 def commands(root: Path, mesh_scale: float) -> dict[str, list[str]]:
     """Each command's argv, writing under ``root``."""
     return {
-        "solve": [JAXSIMRL, "solve", str(user_step(root / "case", mesh_scale)), "--out", str(root / "out")],
+        "solve": [JAXSIMRL, "solve", str(user_step(root / "case", mesh_scale)), "--out", str(root / "out"),
+                  "--controller", "learned"],
         "train-foam": [JAXSIMRL, "train-foam", "--mesh-scale", str(mesh_scale), "--pool", "2",
                        "--steps-per-update", "8", "--episodes", "50", "--out", str(root / "run")],
         "grid-foam": [JAXSIMRL, "grid-foam", "--mesh-scale", str(mesh_scale), "--alpha-u", "0.95",

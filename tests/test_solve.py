@@ -177,7 +177,7 @@ def test_a_case_without_residual_control_is_solved_with_residual(tmp_path: Path)
     assert not (tmp_path / "refused").exists() and not (tmp_path / "unknown").exists()
     out = tmp_path / "out"  # pitzDaily's own thresholds, given on the command line
     process = _cli(str(case), "--out", str(out), "--residual", "p=1e-2,U=1e-3,k=1e-3,epsilon=1e-3",
-                   "--compare", cwd=tmp_path)
+                   "--compare", "--controller", "learned", cwd=tmp_path)
     printed, err = process.communicate(timeout=600)
     assert process.returncode == 0, err
     # the CLI ends without the interpreter's teardown (jaxsimrl.cli.main.entry): nothing printed is lost
@@ -200,7 +200,7 @@ def test_a_case_without_residual_control_is_solved_with_residual(tmp_path: Path)
 def test_a_run_time_control_stop_is_converged_by_the_case_criterion(tmp_path: Path) -> None:
     case = _settling_pitz_daily(tmp_path)
     out = tmp_path / "out"
-    report = solve_case(case, out, compare=True, step_timeout_s=120)
+    report = solve_case(case, out, policy=DEFAULT_CONTROLLER, compare=True, step_timeout_s=120)
     data = json.loads((out / "solve.json").read_text())
     result, own = data["result"], data["compare"]["own"]
     assert report.converged and result["outcome"] == "converged" and not data["fallback"]
@@ -247,7 +247,7 @@ def _first_time(log: str) -> int:
 def test_a_case_with_a_later_time_goes_on_from_it(tmp_path: Path) -> None:
     case, first = _partly_run_pitz_daily(tmp_path)
     out = tmp_path / "out"
-    report = solve_case(case, out, compare=True, step_timeout_s=120)
+    report = solve_case(case, out, policy=DEFAULT_CONTROLLER, compare=True, step_timeout_s=120)
     data = json.loads((out / "solve.json").read_text())
     result, own = data["result"], data["compare"]["own"]
     assert report.converged and data["settings"]["started_from"] == "time 100 (latest)"
@@ -542,7 +542,7 @@ def test_a_stopped_solve_leaves_no_solver_within_5_s_mid_step_and_says_so(tmp_pa
     leave no solver after 5 s. A solver that ran on to the end of its step would fail this."""
     case = slow_pitz_daily(tmp_path / "slow")
     out = tmp_path / "out"
-    process = _cli(str(case), "--out", str(out), "--compare", cwd=tmp_path)
+    process = _cli(str(case), "--out", str(out), "--compare", "--controller", "learned", cwd=tmp_path)
     controlled = out / ".solve-work" / "env_0" / "episode" / "log.simpleFoam"
     own = out / "compare" / "own" / "log.simpleFoam"
 

@@ -145,7 +145,8 @@ def test_bad_np_input_is_one_line_and_exit_2(tmp_path: Path) -> None:
 def test_solve_np_2_converges_to_the_serial_fields_and_takes_a_decomposed_case(tmp_path: Path) -> None:
     case = Path(shutil.copytree(TUTORIALS / "pitzDaily", tmp_path / "pitzDaily"))
     out = tmp_path / "out"
-    process = _cli(str(case), "--out", str(out), "--np", "2", "--keep-decomposed", "--quiet", cwd=tmp_path)
+    process = _cli(str(case), "--out", str(out), "--np", "2", "--keep-decomposed", "--quiet", "--controller",
+                   "learned", cwd=tmp_path)
     _, err = process.communicate(timeout=1200)
     assert process.returncode == 0, err
     data = json.loads((out / "solve.json").read_text())
@@ -171,7 +172,7 @@ def _slow_solve(tmp_path: Path) -> tuple[subprocess.Popen, Path]:
     """solve --np 2 on the slow pitzDaily, waited for until its ranks are 3 iterations into the step."""
     case = slow_pitz_daily(tmp_path / "slow")
     out = tmp_path / "out"
-    process = _cli(str(case), "--out", str(out), "--np", "2", cwd=tmp_path)
+    process = _cli(str(case), "--out", str(out), "--np", "2", "--controller", "learned", cwd=tmp_path)
     log = out / ".solve-work" / "env_0" / "episode" / "log.simpleFoam"
     wait_until(lambda: iterations_in(log) >= 3 or process.poll() is not None, 300, "3 iterations")
     assert process.poll() is None, process.communicate()
@@ -231,7 +232,8 @@ def test_a_hung_parallel_step_is_stopped_with_every_rank(tmp_path: Path) -> None
     stopped here by SIGTERM)."""
     case = slow_pitz_daily(tmp_path / "slow")
     out = tmp_path / "out"
-    process = _cli(str(case), "--out", str(out), "--np", "2", "--step-timeout", "15", cwd=tmp_path)
+    process = _cli(str(case), "--out", str(out), "--np", "2", "--step-timeout", "15", "--controller",
+                   "learned", cwd=tmp_path)
     episode = out / ".solve-work" / "env_0" / "episode"
     try:
         wait_until(lambda: iterations_in(episode / "log.simpleFoam") >= 1 or process.poll() is not None, 300,

@@ -127,9 +127,9 @@ def measure_spread(own: Path, nudged: Path, fields: Sequence[str], criterion: Ma
                    converged: tuple[bool, bool], nudge: str) -> dict[str, Any]:
     """How far two legitimate runs of the case end apart at its criterion: its own run (``own``) and one at
     its own factors with alpha_u a little off (``nudged``; ``nudge`` says how, "alpha_u 0.85"), per field and
-    function-object value, measured as :func:`compare_results` measures; ``settled``: every quantity's
-    spread within the larger of its tolerance and SETTLED (the criterion fixes the answer to what an
-    engineer calls the same). Neither run
+    function-object value, measured as :func:`compare_results` measures; ``settled``: every field's spread
+    within the larger of its tolerance and SETTLED (the criterion fixes the answer to what an engineer
+    calls the same). Neither run
     is better: the spread is what the criterion leaves open. Not measured (``measured`` False, ``reason``)
     when either run did not converge or the case has no residual criterion."""
     base = {"nudge": nudge, "converged": list(converged)}
@@ -140,8 +140,9 @@ def measure_spread(own: Path, nudged: Path, fields: Sequence[str], criterion: Ma
     values = {name: field_difference(nudged, own, name)[0] for name in fields}
     objects, _ = function_object_differences(nudged, own)
     entries = {"fields": {k: v for k, v in values.items() if v is not None}, "function_objects": objects}
-    settled = (all(v <= max(for_fields, SETTLED) for v in entries["fields"].values())
-               and all(v <= max(for_objects, SETTLED) for v in objects.values()))
+    # the fields decide: a function-object value can be noise around zero in any two runs (a 2-D case's
+    # side-force bins: simpleCar's CsBin 1,100 % apart), which says nothing of the flow
+    settled = all(v <= max(for_fields, SETTLED) for v in entries["fields"].values())
     return {**base, "measured": True, **entries, "settled": settled}
 
 
@@ -155,8 +156,7 @@ def spread_line(spread: Mapping[str, Any], criterion: Mapping[str, float]) -> st
     pitzDaily: benchmarks/bench_agreement.py)."""
     if not spread.get("measured"):
         return f"spread not measured ({spread.get('nudge')}): {spread.get('reason')}"
-    worst = sorted(((v, k) for kind in ("fields", "function_objects") for k, v in spread[kind].items()
-                    if math.isfinite(v) and v > 0), reverse=True)
+    worst = sorted(((v, k) for k, v in spread["fields"].items() if math.isfinite(v) and v > 0), reverse=True)
     if not worst:
         return f"the criterion fixes the answer: the own run and one at {spread['nudge']} end identical"
     named = ", ".join(f"{name} {100 * value:.2g} %" for value, name in worst[:3])
