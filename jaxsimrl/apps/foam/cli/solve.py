@@ -30,13 +30,14 @@ def register(subparsers: Any) -> None:
     """Add the ``solve`` subcommand."""
     parser = subparsers.add_parser(
         "solve", help="converge an OpenFOAM simpleFoam case: its own settings, or a controller",
-        description="Copy CASE to --out and run it to convergence, with its residuals drawn live, a "
-        "report, and with --compare a measure of how far its answer may move. By default with the case's own "
-        "settings: the iterations and the answer of your own run, never more (measured: docs/solve.md). "
-        "--controller or --policy sets the factors instead, at the risk measured there; a watchdog hands a "
-        "stalling or growing run to the case's own factors, and a failed run is replaced by the case's own "
-        "run. Convergence is the case's residualControl (or --residual), confirmed at a "
-        "fixed relaxation, or the case's own function objects ending the run (runTimeControl).")
+        description="Copy CASE to --out and run it to convergence, with a report (solve.json, solve.png) "
+        "and, with --compare, a measure of how far its answer may move. By default with the case's own "
+        "settings: the iterations, solver time and answer of your own run, never more (measured on 26 cases "
+        "of three sets: 1.000x own iterations on every one; docs/solve.md). --controller or --policy sets "
+        "the factors instead, at the risk measured there; a watchdog hands a stalling or growing run to the "
+        "case's own factors, and a failed run is replaced by the case's own run. Convergence is the case's "
+        "residualControl (or --residual), confirmed for a controller's run at a fixed relaxation, or the "
+        "case's own function objects ending the run (runTimeControl).")
     parser.add_argument("case", metavar="CASE", type=Path, nargs="+",
                         help="a simpleFoam case directory (never modified); several, or a directory holding "
                         "cases: a campaign (below)")
