@@ -213,11 +213,12 @@ class RandomFactors(_Rule):
 
 @dataclass
 class OwnFactors(_Rule):
-    """The case's own factors at every step: ``solve``'s default (with lean linear solves,
-    jaxsimrl.apps.foam.solve.solvers). Every rule that moves the factors lost on some development case
-    (experiments/solve-safety/README.md: the residual rule, the bandit, GuardedRise, constants at the box's
-    top or half-way), and a change of alpha_u moves the answer the run converges to; the case's own factors
-    cost exactly what the user's run does, in iterations, and the same answer."""
+    """The case's own factors at every step: ``solve``'s default rule. Every rule that moves the factors
+    lost on some development case (experiments/solve-safety/README.md: the residual rule, the bandit,
+    GuardedRise, constants at the box's top or half-way), and a change of alpha_u moves the answer the run
+    converges to. With the case's own linear solves the default does not step at all: its result is a plain
+    run of the case (jaxsimrl.apps.foam.solve.runner); this rule steps it only under ``--solves lean``,
+    whose changed linear solves need the controlled run's case."""
 
     def decide(self, now: float, gain: float) -> list[float]:
         return self.start()
@@ -278,11 +279,11 @@ class GuardedRise(_Rule):
 #: the steps without a new best after which they do.
 WARMUP_STEPS = 1
 RISE_SHARE = 0.5
-#: OwnFactors' step: it decides nothing, so only the live view's redraws and the watchdog's look need one.
-OWN_INTERVAL = 100
 SWITCH_DECADES = 1.0
 HOVER_STEPS = 3
 GUARDED_INTERVAL = 25
+#: OwnFactors' step: it decides nothing, so only the live view's redraws and the watchdog's look need one.
+OWN_INTERVAL = 100
 
 
 #: The random baseline's seed: the same draws for every case and every run.

@@ -239,9 +239,8 @@ def _solve(case: Path, out: Path, policy: Any, compare: bool, constant: Sequence
     report = build_report(case, out, controller, cfg, run, rescue, time_name, wall, results, episode,
                           observed if run.outcome != "not run" else None)
     mark = time.monotonic()
-    fields = solved_field_names(checked.info.solved_fields)
-    spread_found = _spread(results.get("own"), nudged, own, fields, cfg.convergence)
-    _add_agreement(report, out, results, cfg.convergence, fields, "own" if rescue is not None else None,
+    spread_found = _spread(results.get("own"), nudged, own, solved, cfg.convergence)
+    _add_agreement(report, out, results, cfg.convergence, solved, "own" if rescue is not None else None,
                    spread_found)
     phases["agreement_s"] = time.monotonic() - mark
     report.data["result"]["phases"] = phases

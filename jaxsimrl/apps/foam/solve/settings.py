@@ -267,6 +267,11 @@ def check_factor(settings: CaseSettings) -> float:
     return own if own is not None and 0 < own < 1 else UNRELAXED_CHECK
 
 
+def unrelaxed_as_one(settings: CaseSettings) -> list[float]:
+    """The case's own (alpha_u, alpha_p, turbulence), 1 for a factor it does not set (no relaxation)."""
+    return [1.0 if value is None else value for value in settings.factors]
+
+
 #: The training family's best constant (alpha_u, alpha_p, turbulence) per algorithm: the triple with the
 #: lowest geometric mean over the 8 training variants of each algorithm of (iterations / the variant's best
 #: run) among 8 triples each (experiments/controller/family-constant/family_best.json: 1.06 plain SIMPLE,
@@ -292,7 +297,7 @@ def around_own(cfg: FoamEnvConfig, settings: CaseSettings) -> FoamEnvConfig:
     (``SIMPLEC_FLOOR`` for the others) to ``SIMPLEC_TOP`` (0.98 converged no SIMPLEC training variant
     within 3x its own: experiments/controller/family-v6-setup/simplec_top.json), whose top is its family
     constant: it learns where to go down."""
-    own = [1.0 if value is None else value for value in settings.factors][:cfg.action_size]
+    own = unrelaxed_as_one(settings)[:cfg.action_size]
     if settings.variant == "SIMPLEC":
         high = tuple(max(top, factor) for top, factor in zip(SIMPLEC_TOP, own, strict=False))
         floors = (own[0], *(SIMPLEC_FLOOR for _ in own[1:]))
@@ -315,7 +320,7 @@ def nudged_factors(settings: CaseSettings) -> tuple[tuple[float, float, float], 
     algorithm tolerates: SIMPLEC up, as SIMPLEC with an unrelaxed pressure goes unstable below its own
     alpha_u (T3A: see SIMPLEC_FLOOR's note), plain SIMPLE down; U unrelaxed: 1 - SPREAD_NUDGE) and how to
     say it ("alpha_u 0.85")."""
-    u, p, t = (1.0 if value is None else value for value in settings.factors)
+    u, p, t = unrelaxed_as_one(settings)
     up = settings.variant == "SIMPLEC" and u + SPREAD_NUDGE <= SIMPLEC_TOP[0] + 1e-9
     nudged = round(u + SPREAD_NUDGE if up else min(u, 1.0) - SPREAD_NUDGE, 4)
     return (nudged, p, t), f"alpha_u {nudged:g}"
@@ -326,7 +331,7 @@ def with_own(cfg: FoamEnvConfig, settings: CaseSettings) -> FoamEnvConfig:
     that "the case's own factors" a rule or the watchdog goes back to are exactly the user's: a SIMPLEC
     case with an unrelaxed pressure is run at p 1, not at the box's top 0.95."""
     size = len(cfg.action_low)
-    own = [1.0 if value is None else value for value in settings.factors][:size]
+    own = unrelaxed_as_one(settings)[:size]
     low = tuple(min(lo, factor) for lo, factor in zip(cfg.action_low, own, strict=True))
     high = tuple(max(hi, factor) for hi, factor in zip(cfg.action_high, own, strict=True))
     return dataclasses.replace(cfg, action_low=low, action_high=high).validate()
@@ -335,7 +340,7 @@ def with_own(cfg: FoamEnvConfig, settings: CaseSettings) -> FoamEnvConfig:
 def own_action(settings: CaseSettings, cfg: FoamEnvConfig, size: int) -> list[float]:
     """The case's own factors as an action of ``size`` entries, in the env's box (a factor the case does not
     set means no relaxation: 1, clipped to the box's top)."""
-    own = [1.0 if value is None else value for value in settings.factors][:size]
+    own = unrelaxed_as_one(settings)[:size]
     low, high = list(cfg.action_low), list(cfg.action_high)
     return [min(max(value, lo), hi) for value, lo, hi in zip(own, low, high, strict=False)]
 
