@@ -15,6 +15,7 @@ import pytest
 from foam_marks import needs_openfoam
 from test_solve import _coarse_step, _marked_processes
 
+from foam_bridge import FoamEnvConfig
 from jaxsimrl.apps.foam.solve import solve_case
 from jaxsimrl.apps.foam.solve.rules import (
     GROWTH_DECADES,
@@ -29,7 +30,7 @@ from jaxsimrl.apps.foam.solve.rules import (
     ResidualRule,
     RulePolicy,
 )
-from jaxsimrl.apps.foam.solve.settings import CaseSettings, check_factor
+from jaxsimrl.apps.foam.solve.settings import CaseSettings, check_factor, own_action, with_own
 from jaxsimrl.apps.foam.solve.watchdog import WatchdogSettings
 
 CRITERION = {"U": 1e-3, "p": 1e-2}
@@ -217,3 +218,12 @@ def test_a_rule_that_crashes_the_solver_is_rescued_by_the_case_own_run(tmp_path:
     assert [event["kind"] for event in data["fallback"]][-1] == "rerun"
     assert data["result"]["fields_from"].startswith("the case's own settings")
     assert not math.isnan(report.iterations) and not _marked_processes(tmp_path)
+
+
+def test_a_rule_box_holds_the_case_own_factors_exactly() -> None:
+    cfg = FoamEnvConfig(relax_k_omega="action", action_low=(0.2, 0.2, 0.2), action_high=(0.95, 0.95, 0.95))
+    simplec = CaseSettings(factors=(0.9, None, 0.7), flat=False, budget=None, variant="SIMPLEC")
+    widened = with_own(cfg, simplec)  # p unrelaxed is 1, above the box's 0.95: the box takes it in
+    assert widened.action_high == (0.95, 1.0, 0.95) and widened.action_low == (0.2, 0.2, 0.2)
+    assert own_action(simplec, widened, 3) == [0.9, 1.0, 0.7]  # the own factors sent, not p 0.95
+    assert own_action(simplec, cfg, 3) == [0.9, 0.95, 0.7]  # what the narrow box made of them
