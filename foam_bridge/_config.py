@@ -161,10 +161,16 @@ class FoamEnvConfig:
         observe_progress: one more observation entry, K / max_iterations (0 at reset, 1 at the cap).
         observe_action: action_size more entries, the factors in force (the last action after
             clipping; at reset, before any action: the box centre (action_low + action_high) / 2).
+        observe_gain: one more entry, after the factors: the last step's gain, the decades by which the
+            criterion distance (the worst criterion field's log10(residual / threshold)) fell over it
+            (negative where it rose; 0 at reset and after the first step; clipped to +-5). With the
+            factors in force it says what the last choice earned on this case, so a recurrent policy
+            can probe and settle within one run (issue 47); residual features hold levels, not the
+            criterion's distance, which differs by case.
         scale_free_state: the state is divided by the episode's own inlet mean |U|^2 (at reset)
             instead of ``state_scale``: 1 + mean_cells |U|^2 / mean_inlet |U|^2, the same at 10 and
             50 m/s for similar flows (a user's case whose inlet has no value: ``state_scale``).
-            Observation layout: state, residual features, progress, action.
+            Observation layout: state, residual features, progress, algorithm, action, gain.
         state_scale: the observed state is (mean_inlet |U|^2 + mean_cells |U|^2) / state_scale
             (default U_REF**2 = 44.2**2, so the state is O(1)).
         observe_state: False leaves the flow state out of the observation (a controller for many
@@ -252,6 +258,7 @@ class FoamEnvConfig:
     inlet_turbulence: tuple[float, float] | None = None
     observe_progress: bool = False
     observe_action: bool = False
+    observe_gain: bool = False
     scale_free_state: bool = False
     observed_fields: tuple[str, ...] | None = None
     start_time: int = 0
@@ -328,7 +335,7 @@ class FoamEnvConfig:
                self.observe_algorithm, "simple_variant set (the algorithm observed)")
         _check(_is_int(self.start_time) and self.start_time >= 0 and not (self.start_time and self.builtin),
                "start_time", self.start_time, "an integer >= 0 (0 for the built-in case)")
-        for name in ("observe_progress", "observe_action", "scale_free_state"):
+        for name in ("observe_progress", "observe_action", "observe_gain", "scale_free_state"):
             _check(isinstance(getattr(self, name), bool), name, getattr(self, name), "true or false")
         _check(self.state_scale > 0, "state_scale", self.state_scale)
         _check(self.step_timeout_s > 0, "step_timeout_s", self.step_timeout_s)
@@ -414,7 +421,7 @@ class FoamEnvConfig:
         """Length of the observation vector: the state, the residual features, the progress, the action."""
         return (int(self.observe_state) + self.residual_features * len(self.observed)
                 + int(self.observe_progress) + int(self.observe_algorithm)
-                + self.action_size * int(self.observe_action))
+                + self.action_size * int(self.observe_action) + int(self.observe_gain))
 
     # ---- JSON (the "foam" section of a train-foam run's config.json) ----------------------------------
     def to_json(self) -> dict[str, Any]:
@@ -461,7 +468,7 @@ _JSON_TUPLE_FIELDS = ("action_low", "action_high", "turbulence_fields", "inlet_t
 #: Fields to_json leaves out at None (added after runs were written; their JSON stays byte-identical).
 _OMITTED_WHEN_NONE = ("observed_fields", "action_pivot", "freeze_decades")
 #: Fields to_json leaves out at their default, for the same reason.
-_OMITTED_AT_DEFAULT = ("observe_state", "observe_algorithm", "action_share", "reward_scale")
+_OMITTED_AT_DEFAULT = ("observe_state", "observe_algorithm", "action_share", "reward_scale", "observe_gain")
 
 
 def _to_json(value: Any) -> Any:

@@ -98,6 +98,9 @@ FAILURES = ("crashed", "diverged", "hung")
 #: The cause of a "converged" episode that the case's own function object ended (a runTimeControl with
 #: ``satisfiedAction end``: its criterion, e.g. a settled force coefficient), followed by its name.
 CASE_STOP = "ended by the case's own function object"
+#: The observed gain's bound in decades (FoamEnvConfig.observe_gain): a blow-up or a restart's jump says
+#: no more than "a great loss" or "a great gain".
+GAIN_BOUND = 5.0
 #: Lock file held (fcntl.flock) by the FoamCaseEnv that owns an env directory.
 LOCK_FILE = ".foam_bridge.lock"
 #: The sub-directory of an env directory that holds the running episode's case (read by the episode pool).
@@ -215,6 +218,8 @@ class FoamCaseEnv:
         self._features: deque[np.ndarray] = deque(
             [np.zeros(len(self.cfg.observed))] * self.cfg.residual_features,
             maxlen=self.cfg.residual_features or None)
+        self._distance: float | None = None  # the criterion distance at the last step boundary
+        self._gain = 0.0
         self._episode = {"env_id": self.env_id, "seed": seed, "inlet_velocity": velocity,
                          "step_height": math.nan if self._height is None else self._height, "actions": [],
                          "return": 0.0, "steps": 0, "solver_idle_s": 0.0, "started": time.monotonic()}
@@ -460,12 +465,24 @@ class FoamCaseEnv:
             logs = [np.log10(max(level, 1e-30)) if level is not None and np.isfinite(level) else 0.0
                     for level in levels]
             self._features.append(np.asarray(logs))
+        self._note_gain(residuals)
         parser = self._parser
         # a failed step keeps the last state read (the solver's last one may be a blow-up)
         inlet = parser.inlet_state if self.cfg.inlet_patch is not None else 0.0  # no inlet: the cells alone
         if outcome not in FAILURES and inlet is not None and parser.cells_state is not None:
             self._state = (inlet + parser.cells_state) / self._scale
         self._obs = self._observation()
+
+    def _note_gain(self, residuals: dict[str, float]) -> None:
+        """The last step's gain (FoamEnvConfig.observe_gain); a step without residuals keeps the last."""
+        if not residuals:
+            return
+        distance = criterion_distance(residuals, self.cfg.convergence)
+        if not np.isfinite(distance):
+            return
+        if self._distance is not None:
+            self._gain = float(np.clip(self._distance - distance, -GAIN_BOUND, GAIN_BOUND))
+        self._distance = distance
 
     def _observation(self) -> np.ndarray:
         """state, residual features, progress, factors in force (FoamEnvConfig's observation layout)."""
@@ -478,6 +495,8 @@ class FoamCaseEnv:
             parts.append(np.array([float(cfg.variant == "SIMPLEC")]))
         if cfg.observe_action:  # as the policy acts: a share of the box with action_share
             parts.append(shares_of(cfg, self._factors))
+        if cfg.observe_gain:
+            parts.append(np.array([self._gain]))
         return bounded_observation(np.concatenate(parts))
 
     def _info(self, outcome: str, cause: str, residuals: dict[str, float]) -> dict[str, Any]:

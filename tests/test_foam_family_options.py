@@ -143,3 +143,37 @@ def test_a_family_env_draws_its_cases_from_its_seed_and_names_them(tmp_path: Pat
             env.reset(options={"case": "cavity"})
     finally:
         env.close()
+
+
+def test_the_gain_is_one_entry_last_and_old_configs_json_stays_as_it_was() -> None:
+    cfg = FoamEnvConfig(simple_variant="SIMPLEC", **SHARED)
+    gained = FoamEnvConfig(simple_variant="SIMPLEC", observe_gain=True, **SHARED)
+    assert gained.observation_size == cfg.observation_size + 1
+    assert "observe_gain" not in cfg.to_json() and gained.to_json()["observe_gain"] is True
+    assert FoamEnvConfig.from_json(gained.to_json()) == gained
+    with pytest.raises(ValueError, match="observe_gain"):
+        FoamEnvConfig(observe_gain=1).validate()
+
+
+@needs_openfoam
+def test_the_gain_is_the_fall_of_the_criterion_distance_over_the_last_step(tmp_path: Path) -> None:
+    from foam_bridge._logparse import criterion_distance
+
+    cfg = FoamEnvConfig(mesh_scale=0.4, simple_variant="SIMPLEC", interval=25, max_iterations=1000,
+                        step_timeout_s=60.0, work_dir=tmp_path, observe_gain=True, **SHARED)
+    env = FoamCaseEnv(cfg)
+    try:
+        obs, _ = env.reset(seed=0, options={"inlet_velocity": 50.0})
+        assert obs[-1] == 0.0 and obs[-3:-1] == pytest.approx([0.5, 0.5])  # the factors, then the gain
+        distances, gains = [], []
+        for _ in range(3):
+            obs, _, terminated, _, info = env.step(np.array([0.8, 0.8]))
+            assert not terminated
+            distances.append(criterion_distance(info["residuals"], cfg.convergence))
+            gains.append(float(obs[-1]))
+        assert gains[0] == 0.0  # no earlier boundary to gain on
+        falls = [distances[0] - distances[1], distances[1] - distances[2]]
+        assert gains[1:] == pytest.approx(falls, abs=1e-5)
+        assert any(abs(g) > 1e-3 for g in gains[1:])  # the residuals moved: a gain that says something
+    finally:
+        env.close()

@@ -45,6 +45,8 @@ REWARD_SCALES = {"iterations": 1e-3, "linear-iterations": 1e-4, "solver-time": 0
 OBSERVE_SWITCHES = (
     ("observe_progress", "observe K / max_iterations, the iterations so far"),
     ("observe_action", "observe the factors in force (the box centre before the first action)"),
+    ("observe_gain", "observe the last step's gain: the decades by which the criterion distance fell over "
+                     "it (what the last factors earned; for a recurrent policy that probes the case)"),
     ("scale_free_state", "divide the state by the episode's inlet mean |U|^2 instead of 44.2^2, so that "
                          "a slow case looks like a fast one"),
 )

@@ -32,7 +32,8 @@ def foam_spec(record: dict[str, Any]) -> EnvSpec:
 def foam_obs_names(cfg: Any) -> tuple[str, ...]:
     """"state" (unless left out), then per residual feature block (oldest first) "log10 r_<field>", with
     "(t-k)" for the block k step boundaries before the latest (foam_bridge keeps the last
-    ``residual_features``), then "progress", "SIMPLEC" and the factors in force, where observed."""
+    ``residual_features``), then "progress", "SIMPLEC", the factors in force and the last step's gain,
+    where observed."""
     names = [FOAM_STATE_NAME] if getattr(cfg, "observe_state", True) else []
     blocks = cfg.residual_features
     for block in range(blocks):
@@ -44,4 +45,6 @@ def foam_obs_names(cfg: Any) -> tuple[str, ...]:
         names.append("SIMPLEC")
     if cfg.observe_action:
         names += [f"last {name}" for name in ACTION_NAMES[:cfg.action_size]]
+    if getattr(cfg, "observe_gain", False):
+        names.append("last gain")
     return tuple(names)
