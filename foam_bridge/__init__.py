@@ -62,6 +62,8 @@ _HOMES: dict[str, tuple[str, ...]] = {
     "_family": (
         "VARIATION_NAMES", "FamilyCase", "Variation", "build_family", "read_manifest", "sample_variations",
     ),
+    "_generator_specs": ("GEOMETRY_KINDS", "CaseSpec", "sample_specs"),
+    "_generator": ("GeneratedCase", "generate_cases", "read_generated", "write_case"),
     "_openfoam": ("find_openfoam",),
     "_logparse": ("LogParser", "SolverCost", "criterion_distance", "field_residual", "solved_field_names"),
     "_errors": (
@@ -92,21 +94,23 @@ _MODULES = ("foamdict",)
 __all__ = [
     "ACTION_NAMES", "AsyncFoamEnv", "BACKENDS", "BAD_INPUT_ERRORS", "BUILTIN_INLET_VELOCITY",
     "BUILTIN_RELAX_K_OMEGA", "BatchedFoamEnv", "CASE_DEFAULT_FIELDS", "CASE_STOP", "COLUMNS", "CaseError",
-    "CaseInfo", "ClusterError", "Condition", "ConstantFactors", "ENV_ID", "EpisodeJob", "EpisodeRecord",
-    "EpisodeRun", "FAILURES", "FOLLOW_ALPHA_U", "FamilyCase", "FamilyFactory", "FoamCaseEnv",
-    "FoamEnvConfig", "GridCell", "K_OMEGA_ACTION", "LocalBackend", "LogParser", "MESH_SCALE_USABLE_MIN",
-    "NEVER_CONVERGED", "NoResidualControl", "OBSERVATION_BOUND", "OUTCOMES", "OpenFOAMNotFoundError",
-    "PAPER_INLET_TURBULENCE", "POST_PROCESSING", "PoolLostError", "REWARDS", "RelaxationControlEnv",
-    "RelaxationControlVecEnv", "Reply", "Request", "SIMPLE_VARIANTS", "STEP_HEIGHT_H", "SolverCost",
-    "SolverFailure", "StatelessController", "StepRecord", "TEST_CONVERGENCE", "TRAIN_CONVERGENCE",
-    "TimedSteps", "U_REF", "VARIATION_NAMES", "Variation", "action_spec", "best_cell", "build_family",
-    "case_defaults", "check_case", "check_case_files", "copy_case", "criterion_distance", "declared_patches",
-    "decompose", "export_case", "factors_of", "failure_reward", "field_residual", "find_openfoam",
-    "foamdict", "grid_config", "kill_processes_under", "latest_time", "make_backend", "mpirun_path",
-    "plot_grid", "plot_grid_slices", "processor_count", "read_grid_csv", "read_manifest", "read_rows",
-    "reconstruct", "reconstruct_into", "reconstructed_case", "relative_l2", "rows_to_csv", "run_application",
-    "run_episodes", "run_grid", "run_to_end", "sample_variations", "shares_of", "solved_field_names",
-    "time_directories", "validate_pool", "without_convergence_test", "write_grid_csv",
+    "CaseInfo", "CaseSpec", "ClusterError", "Condition", "ConstantFactors", "ENV_ID", "EpisodeJob",
+    "EpisodeRecord", "EpisodeRun", "FAILURES", "FOLLOW_ALPHA_U", "FamilyCase", "FamilyFactory",
+    "FoamCaseEnv", "FoamEnvConfig", "GEOMETRY_KINDS", "GeneratedCase", "GridCell", "K_OMEGA_ACTION",
+    "LocalBackend", "LogParser", "MESH_SCALE_USABLE_MIN", "NEVER_CONVERGED", "NoResidualControl",
+    "OBSERVATION_BOUND", "OUTCOMES", "OpenFOAMNotFoundError", "PAPER_INLET_TURBULENCE", "POST_PROCESSING",
+    "PoolLostError", "REWARDS", "RelaxationControlEnv", "RelaxationControlVecEnv", "Reply", "Request",
+    "SIMPLE_VARIANTS", "STEP_HEIGHT_H", "SolverCost", "SolverFailure", "StatelessController", "StepRecord",
+    "TEST_CONVERGENCE", "TRAIN_CONVERGENCE", "TimedSteps", "U_REF", "VARIATION_NAMES", "Variation",
+    "action_spec", "best_cell", "build_family", "case_defaults", "check_case", "check_case_files",
+    "copy_case", "criterion_distance", "declared_patches", "decompose", "export_case", "factors_of",
+    "failure_reward", "field_residual", "find_openfoam", "foamdict", "generate_cases", "grid_config",
+    "kill_processes_under", "latest_time", "make_backend", "mpirun_path", "plot_grid", "plot_grid_slices",
+    "processor_count", "read_generated", "read_grid_csv", "read_manifest", "read_rows", "reconstruct",
+    "reconstruct_into", "reconstructed_case", "relative_l2", "rows_to_csv", "run_application",
+    "run_episodes", "run_grid", "run_to_end", "sample_specs", "sample_variations", "shares_of",
+    "solved_field_names", "time_directories", "validate_pool", "without_convergence_test", "write_case",
+    "write_grid_csv",
 ]
 
 
@@ -181,6 +185,8 @@ if TYPE_CHECKING:  # what type checkers and editors see; at run time __getattr__
     )
     from foam_bridge._family_env import FamilyFactory
     from foam_bridge._fields import relative_l2, time_directories
+    from foam_bridge._generator import GeneratedCase, generate_cases, read_generated, write_case
+    from foam_bridge._generator_specs import GEOMETRY_KINDS, CaseSpec, sample_specs
     from foam_bridge._grid import (
         Condition,
         GridCell,

@@ -45,7 +45,8 @@ BLOCKS = _blocks()
 
 
 def _uses_openfoam(code: str) -> bool:
-    return "foam_bridge" in code or re.search(r"\bjaxsimrl (grid|train|eval)-foam\b", code) is not None
+    foam = r"\bjaxsimrl ((grid|train|eval)-foam|generate-cases)\b"
+    return "foam_bridge" in code or re.search(foam, code) is not None
 
 
 def _is_slow(code: str) -> bool:

@@ -8,7 +8,7 @@ core through its public modules; the core finds it through ``APP`` (jaxsimrl.app
 - ``evaluation``: eval-foam, the constant-factor baselines and their grids; ``introspect``: rollouts and
   factor histories of a trained policy;
 - ``solve``: ``jaxsimrl solve`` on a user's own case; ``controllers``: the controller it ships;
-- ``cli``: the subcommands (grid-foam, train-foam, eval-foam, solve, family).
+- ``cli``: the subcommands (grid-foam, train-foam, eval-foam, solve, family, generate-cases).
 """
 
 from jaxsimrl.plugin import App
@@ -20,7 +20,7 @@ FAILED_OUTCOMES = frozenset({"crashed", "diverged", "hung"})
 APP = App(
     env="foam",
     commands=tuple(f"jaxsimrl.apps.foam.cli.{name}"
-                   for name in ("grid_foam", "train_foam", "eval_foam", "solve", "family")),
+                   for name in ("grid_foam", "train_foam", "eval_foam", "solve", "family", "generate_cases")),
     env_spec="jaxsimrl.apps.foam.spec:foam_spec",
     rollout="jaxsimrl.apps.foam.introspect.rollout:foam_rollout",
     failed_outcomes=FAILED_OUTCOMES,

@@ -10,13 +10,17 @@ foam_bridge._user_case), algorithm. What one controller needs to act on all of t
   share 0.5 at ``action_pivot`` (jaxsimrl.apps.foam.solve.settings.around_own): the training family's
   constant for the case's algorithm, clipped into its box (a SIMPLEC case's alpha_u never below its own),
   so the initial policy starts where a user who copied that constant would;
-- the reward is scaled per case by 100 / the iterations of the case's own settings, so that a case ten
-  times longer than another does not outweigh it tenfold; and each case's budget is
+- the reward is scaled per case by 100 / the cost of the case's own settings (their iterations, or their
+  solver CPU seconds with ``--reward solver-time``), so that a case ten times longer than another does not
+  outweigh it tenfold; and each case's budget is
   ``BUDGET_FACTOR`` x those iterations (a bad episode costs a bounded multiple of a good one), or the
   case's own budget where its own settings do not converge.
 
 The own runs are measured here once, before the run starts (a progress line each), and the family's
-configs are written into config.json, so a resumed run measures nothing again.
+configs are written into config.json, so a resumed run measures nothing again. A case that foam_bridge's
+generator made (``jaxsimrl generate-cases``) is not run again: the generator ran its own settings when it
+made it (to keep only cases they converge) and its manifest, ``generated.json`` beside the case, holds that
+run; a family of thousands of generated cases pays its own runs once, on the generator's workers.
 """
 
 from __future__ import annotations
@@ -25,10 +29,11 @@ import dataclasses
 import math
 import tempfile
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from foam_bridge import FoamEnvConfig, check_case, find_openfoam
+from foam_bridge import FoamEnvConfig, check_case, find_openfoam, read_generated
 from jaxsimrl.apps.foam.config import user_case_config
 from jaxsimrl.apps.foam.solve.fields import observed_mapping
 from jaxsimrl.apps.foam.solve.own import run_own
@@ -55,7 +60,8 @@ def family_case_dirs(paths: Sequence[str | Path]) -> list[Path]:
         if (path / "system" / "controlDict").is_file():
             found.append(path)
         elif path.is_dir():
-            found += sorted(p for p in path.iterdir() if (p / "system" / "controlDict").is_file())
+            found += sorted(p for p in path.iterdir()  # a hidden directory is a tool's scratch, not a case
+                            if not p.name.startswith(".") and (p / "system" / "controlDict").is_file())
         else:
             raise ValueError(f"--family {path}: not a directory")
     if not found:
@@ -90,15 +96,38 @@ def _case_config(cfg: FoamEnvConfig, case: Path, checked: tuple[Path, Any], own_
     mapping, why = observed_mapping(cfg, info.solved_fields)
     if mapping is None:
         raise ValueError(f"--family: case {case}: {why}")
-    own = run_own(case, own_dir, "own", 24 * 3600.0)
+    own = _own_run(case, own_dir)
     # a case its own settings do not converge keeps its own budget (the iterations they ran: its endTime)
     iterations = max(own.iterations, cfg.interval)
     budget = math.ceil((BUDGET_FACTOR if own.converged else 1) * iterations / cfg.interval) * cfg.interval
     budget = min(cfg.max_iterations, budget)
+    cost = max(own.cpu_s, 1e-3) if cfg.reward == "solver-time" else iterations
+    source = ", as the generator ran them" if own.recorded else ""
     say(f"family case {name}: {settings.variant}, own settings {'converge in' if own.converged else 'reach'}"
-        f" {own.iterations} iterations; budget {budget}")
+        f" {own.iterations} iterations ({own.cpu_s:.2f} s CPU{source}); budget {budget}")
     return dataclasses.replace(cfg, observed_fields=tuple(mapping.values()), max_iterations=budget,
-                               reward_scale=REWARD_UNIT / iterations).validate()
+                               reward_scale=REWARD_UNIT / cost).validate()
+
+
+@dataclass(frozen=True)
+class OwnCost:
+    """What a case's own settings cost: converged, iterations, solver CPU seconds; ``recorded``: taken from
+    the generator's manifest rather than run here."""
+
+    converged: bool
+    iterations: int
+    cpu_s: float
+    recorded: bool
+
+
+def _own_run(case: Path, own_dir: Path) -> OwnCost:
+    """The case's own run: the generator's record of it where ``generated.json`` beside the case has one,
+    else run now."""
+    for entry in read_generated(case.parent).get("cases", []):
+        if entry.get("name") == case.name and entry.get("iterations") is not None:
+            return OwnCost(bool(entry["converged"]), int(entry["iterations"]), float(entry["cpu_s"]), True)
+    own = run_own(case, own_dir, "own", 24 * 3600.0)
+    return OwnCost(own.converged, own.iterations, own.cpu_time_s, False)
 
 
 def _names(cases: Sequence[Path]) -> list[str]:
