@@ -61,6 +61,8 @@ MESH_SCALE_USABLE_MIN = 0.4
 #: The costs a reward can count (FoamEnvConfig.reward): SIMPLE iterations (the paper's), the linear
 #: solvers' inner iterations (every "No Iterations" of the log) or the solver's own CPU seconds.
 REWARDS = ("iterations", "linear-iterations", "solver-time")
+#: What a controller's share 0.5 stands for on a case (FoamEnvConfig.pivot_at).
+PIVOTS = ("family", "own")
 #: Every observation entry is clipped into [-OBSERVATION_BOUND, OBSERVATION_BOUND] (NaN -> the bound):
 #: the last line of defence for a learner's normaliser; divergence detection ends episodes long before.
 OBSERVATION_BOUND = 1e6
@@ -185,6 +187,11 @@ class FoamEnvConfig:
             controller's "0.5" is every case's own settings, above it more aggressive, below more
             cautious); the map is linear from action_low to it and from it to action_high. None: linear
             over the whole box.
+        pivot_at: what a controller's share 0.5 stands for on a case of its own (the application's rule
+            that sets ``action_pivot`` for each case, recorded with the policy so that training and use
+            agree): "family" (default), the training family's constant for the case's algorithm; "own",
+            the case's own factors, so that the initial policy is the user's own run (issue 47). The
+            env itself reads only ``action_pivot``.
         reward_scale: every step's reward (a failure's too) is multiplied by it; a family of cases that
             differ tenfold in iterations weighs each alike with 100 / the case's own iterations.
         freeze_decades: once the run is within this many decades of its criterion (the worst
@@ -245,6 +252,7 @@ class FoamEnvConfig:
     observe_algorithm: bool = False
     action_share: bool = False
     action_pivot: tuple[float, ...] | None = None
+    pivot_at: str = "family"
     reward_scale: float = 1.0
     freeze_decades: float | None = None
     state_scale: float = U_REF**2
@@ -331,6 +339,7 @@ class FoamEnvConfig:
         _check(pivot is None or len(pivot) == len(self.action_low) and all(
             lo <= x <= hi for x, lo, hi in zip(pivot, self.action_low, self.action_high, strict=True)),
             "action_pivot", pivot, "None or one factor per action, each in the box")
+        _check(self.pivot_at in PIVOTS, "pivot_at", self.pivot_at, f"one of {', '.join(PIVOTS)}")
         _check(not self.observe_algorithm or self.variant is not None, "observe_algorithm",
                self.observe_algorithm, "simple_variant set (the algorithm observed)")
         _check(_is_int(self.start_time) and self.start_time >= 0 and not (self.start_time and self.builtin),
@@ -468,7 +477,8 @@ _JSON_TUPLE_FIELDS = ("action_low", "action_high", "turbulence_fields", "inlet_t
 #: Fields to_json leaves out at None (added after runs were written; their JSON stays byte-identical).
 _OMITTED_WHEN_NONE = ("observed_fields", "action_pivot", "freeze_decades")
 #: Fields to_json leaves out at their default, for the same reason.
-_OMITTED_AT_DEFAULT = ("observe_state", "observe_algorithm", "action_share", "reward_scale", "observe_gain")
+_OMITTED_AT_DEFAULT = ("observe_state", "observe_algorithm", "action_share", "reward_scale", "observe_gain",
+                       "pivot_at")
 
 
 def _to_json(value: Any) -> Any:

@@ -177,3 +177,17 @@ def test_the_gain_is_the_fall_of_the_criterion_distance_over_the_last_step(tmp_p
         assert any(abs(g) > 1e-3 for g in gains[1:])  # the residuals moved: a gain that says something
     finally:
         env.close()
+
+
+def test_pivot_at_own_puts_share_one_half_at_the_case_s_own_factors() -> None:
+    template = FoamEnvConfig(action_low=(0.35, 0.15, 0.35), action_high=(0.875, 0.375, 0.875),
+                             relax_k_omega="action", action_share=True, pivot_at="own")
+    plain = around_own(template, CaseSettings((0.7, 0.3, 0.7), False, None, "SIMPLE")).validate()
+    assert plain.action_pivot == (0.7, 0.3, 0.7)
+    assert factors_of(plain, [0.5] * 3) == pytest.approx([0.7, 0.3, 0.7])
+    simplec = around_own(template, CaseSettings((0.9, None, 0.9), False, None, "SIMPLEC")).validate()
+    assert simplec.action_pivot == (0.9, 1.0, 0.9)  # p unrelaxed: 1
+    assert factors_of(simplec, [0.0, 0.5, 1.0]) == pytest.approx([0.9, 1.0, 0.95])  # never below own alpha_u
+    assert "pivot_at" not in FoamEnvConfig().to_json() and FoamEnvConfig.from_json(plain.to_json()) == plain
+    with pytest.raises(ValueError, match="pivot_at"):
+        FoamEnvConfig(pivot_at="mine").validate()

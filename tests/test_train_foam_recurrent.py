@@ -1,7 +1,7 @@
 """A recurrent controller trained on generated cases (issue 47): train-foam --family over a directory that
 foam_bridge's generator made takes each case's own run from the generator's manifest (nothing measured
 again), scales a solver-time reward by the own run's CPU seconds, trains an LSTM that observes the last
-step's gain, resumes, and ``solve`` runs it on a case with its recurrent state. Real simpleFoam on coarse
+step's gain and whose share 0.5 is each case's own factors, resumes, and ``solve`` runs it on a case with its recurrent state. Real simpleFoam on coarse
 generated cases."""
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from jaxsimrl.apps.foam.cli.train_family import family_case_dirs
 from jaxsimrl.apps.foam.solve import solve_case
 
 RECURRENT = {"ppo": {"network": "lstm", "hidden_sizes": [16], "lstm_size": 16, "seq_len": 4,
-                     "num_minibatches": 1, "update_epochs": 1}, "foam": {"interval": 25}}
+                     "num_minibatches": 1, "update_epochs": 1}, "foam": {"interval": 25, "pivot_at": "own"}}
 TINY = ["--pool", "2", "--num-envs", "2", "--steps-per-update", "8", "--residual-features", "2",
         "--observe-progress", "--observe-action", "--observe-gain", "--reward", "solver-time"]
 
@@ -51,6 +51,8 @@ def test_a_recurrent_controller_trains_on_generated_cases_and_solves_with_its_st
         assert f"{case.name}: " in err and "as the generator ran them" in err
         assert entry["reward_scale"] == pytest.approx(100.0 / case.cpu_s)
         assert entry["observe_gain"] and entry["reward"] == "solver-time"
+        own = dict(case.spec.factors)
+        assert entry["action_pivot"] == pytest.approx([own["U"], own["p"], own["turbulence"]])  # 0.5: own
     rows = list(csv.DictReader((run / "episodes.csv").open()))
     assert len(rows) >= 2 and all(row["outcome"] in ("converged", "truncated") for row in rows)
     code, err = _cli(capsys, "train-foam", "--resume", run, "--episodes", str(len(rows) + 1))
@@ -60,3 +62,4 @@ def test_a_recurrent_controller_trains_on_generated_cases_and_solves_with_its_st
     report = solve_case(case, out, policy=run, step_timeout_s=120)
     data = json.loads((out / "solve.json").read_text())
     assert report.iterations > 0 and data["steps"][0]["source"] == "controller"
+    assert data["settings"]["action_pivot"] == pytest.approx(written["family"][made[0].name]["action_pivot"])

@@ -38,7 +38,8 @@ from jaxsimrl.apps.foam.solve.fields import observed_mapping
 
 #: FoamEnvConfig fields that define the policy's MDP (observation, action meaning); copied when present.
 POLICY_FIELDS = ("interval", "residual_features", "state_scale", "observe_progress", "observe_action",
-                 "observe_gain", "scale_free_state", "observe_state", "observe_algorithm", "action_share")
+                 "observe_gain", "scale_free_state", "observe_state", "observe_algorithm", "action_share",
+                 "pivot_at")
 #: The policy's turbulence setting that is part of its action (helper config: a third action).
 TURBULENCE_ACTION = "action"
 #: The iteration budget when the case's controlDict gives none (endTime / deltaT).
@@ -292,11 +293,13 @@ def around_own(cfg: FoamEnvConfig, settings: CaseSettings) -> FoamEnvConfig:
     """The box a controller acting in shares of a case's neighbourhood gets, and its ``action_pivot`` (the
     factors at share 0.5): the training family's constant for the case's algorithm (``FAMILY_CONSTANT``),
     clipped into the box, so that the initial policy starts where a user who copied that constant would
-    and learns where to leave it. Plain SIMPLE: the case's box (around its own factors,
-    foam_bridge's user_case) widened to hold its own factors. SIMPLEC: from the case's own alpha_u
-    (``SIMPLEC_FLOOR`` for the others) to ``SIMPLEC_TOP`` (0.98 converged no SIMPLEC training variant
-    within 3x its own: experiments/controller/family-v6-setup/simplec_top.json), whose top is its family
-    constant: it learns where to go down."""
+    and learns where to leave it; with ``cfg.pivot_at`` "own", the case's own factors (the initial policy
+    is then the user's own run: on generated plain SIMPLE cases the family's constant cost up to 4.5x own
+    or never converged, experiments/controller/generated-ranking/). Plain SIMPLE: the case's box (around
+    its own factors, foam_bridge's user_case) widened to hold its own factors. SIMPLEC: from the case's
+    own alpha_u (``SIMPLEC_FLOOR`` for the others) to ``SIMPLEC_TOP`` (0.98 converged no SIMPLEC training
+    variant within 3x its own: experiments/controller/family-v6-setup/simplec_top.json), whose top is its
+    family constant: it learns where to go down."""
     own = unrelaxed_as_one(settings)[:cfg.action_size]
     if settings.variant == "SIMPLEC":
         high = tuple(max(top, factor) for top, factor in zip(SIMPLEC_TOP, own, strict=False))
@@ -305,7 +308,7 @@ def around_own(cfg: FoamEnvConfig, settings: CaseSettings) -> FoamEnvConfig:
     else:
         low = cfg.action_low
         high = tuple(max(hi, factor) for hi, factor in zip(cfg.action_high, own, strict=True))
-    constant = FAMILY_CONSTANT[settings.variant][:cfg.action_size]
+    constant = own if cfg.pivot_at == "own" else FAMILY_CONSTANT[settings.variant][:cfg.action_size]
     pivot = tuple(min(max(factor, lo), hi) for factor, lo, hi in zip(constant, low, high, strict=True))
     return dataclasses.replace(cfg, action_low=low, action_high=high, action_pivot=pivot)
 
