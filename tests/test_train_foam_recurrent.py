@@ -1,8 +1,8 @@
 """A recurrent controller trained on generated cases (issue 47): train-foam --family over a directory that
 foam_bridge's generator made takes each case's own run from the generator's manifest (nothing measured
 again), scales a solver-time reward by the own run's CPU seconds, trains an LSTM that observes the last
-step's gain and whose share 0.5 is each case's own factors, resumes, and ``solve`` runs it on a case with its recurrent state. Real simpleFoam on coarse
-generated cases."""
+step's gain and whose share 0.5 is each case's own factors, resumes, and ``solve`` runs it on a case
+with its recurrent state and the same pivot. Real simpleFoam on coarse generated cases."""
 
 from __future__ import annotations
 
