@@ -27,12 +27,12 @@ def main(run: Path) -> None:
     family = config["family"]
     rows = list(csv.DictReader((run / "episodes.csv").open()))
     fig, ax = plt.subplots(figsize=(8, 4.5))
-    for algorithm in ("SIMPLE", "SIMPLEC"):
+    for colour, algorithm in (("C0", "SIMPLE"), ("C3", "SIMPLEC")):
         mine = [row for row in rows if family[row["case"]]["simple_variant"] == algorithm]
         cost = [-float(row["return"]) / 100.0 for row in mine]
         rolling = [statistics.median(cost[max(0, k - WINDOW + 1):k + 1]) for k in range(len(cost))]
-        ax.plot(range(len(cost)), cost, ".", ms=2, alpha=0.25)
-        ax.plot(range(len(cost)), rolling, label=f"{algorithm}: rolling median of {WINDOW}")
+        ax.plot(range(len(cost)), cost, ".", ms=2, alpha=0.25, color=colour)
+        ax.plot(range(len(cost)), rolling, color=colour, label=f"{algorithm}: rolling median of {WINDOW}")
         if cost:
             last = cost[-WINDOW:]
             failed = sum(row["outcome"] != "converged" for row in mine[-WINDOW:])

@@ -10,7 +10,8 @@ numbers only.
 The baselines (each case's own settings, plain simpleFoam; the bandit through solve) run once per case and
 are kept in ``--baselines`` (a JSON line per case and controller); a checkpoint is one JSON line of --out
 (checkpoints already there are skipped): per case iterations, solver CPU seconds, where the fields came
-from, and the ratios to own (iterations, CPU) and to the bandit (CPU); their medians. A solve whose
+from, and the ratios to own (iterations; CPU within a pair with an own run made just before it) and to
+the bandit (CPU, each over its own pair's own run); their medians. A solve whose
 controller gave way to the case's own run counts as it ran (its iterations and seconds in all).
 """
 
@@ -60,15 +61,19 @@ def baselines(cases: list[Path], path: Path, scratch: Path) -> dict[str, dict[st
 
 
 def validate(run: Path, update: int, cases: list[Path], base: dict, scratch: Path) -> dict:
-    """One checkpoint on every validation case."""
+    """One checkpoint on every validation case. CPU seconds move with the machine's load, so each learned
+    solve is paired with an own run made just before it: its CPU ratio to own is within the pair, and its
+    ratio to the bandit is that over the bandit's own ratio within its pair (the baselines')."""
     policy = load_policy(run, update)
     rows = {}
     for case in cases:
+        paired = run_own(case, scratch / f"u{update}-own-{case.name}", "own", 3600.0)
         row = solved(case, scratch / f"u{update}-{case.name}", policy=policy)
         own, bandit = base[case.name]["own"], base[case.name]["bandit"]
-        rows[case.name] = {**row, "iterations_vs_own": row["iterations"] / own["iterations"],
-                           "cpu_vs_own": row["cpu_s"] / own["cpu_s"],
-                           "cpu_vs_bandit": row["cpu_s"] / bandit["cpu_s"]}
+        cpu_vs_own = row["cpu_s"] / paired.cpu_time_s
+        rows[case.name] = {**row, "own_cpu_s": paired.cpu_time_s, "cpu_vs_own": cpu_vs_own,
+                           "iterations_vs_own": row["iterations"] / own["iterations"],
+                           "cpu_vs_bandit": cpu_vs_own / (bandit["cpu_s"] / own["cpu_s"])}
     medians = {key: statistics.median(r[key] for r in rows.values())
                for key in ("iterations_vs_own", "cpu_vs_own", "cpu_vs_bandit")}
     return {"update": update, "time_utc": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
