@@ -18,7 +18,7 @@ RUN=experiments/controller/generated-v1-s$SEED
 jaxsimrl train-foam --family $(python experiments/controller/generated-v1-setup/family.py \
         runs/generated-train-r0.7 runs/generated-train-r1) --config experiments/controller/generated-v1-setup/train-config.json \
     --residual-features 2 --observe-progress --observe-action --observe-gain --reward solver-time \
-    --pool 2 --num-envs 4 --steps-per-update 64 --init-action 0.5 0.5 0.5 --episodes 20000 --seed $SEED \
+    --pool 2 --num-envs 4 --steps-per-update 256 --init-action 0.5 0.5 0.5 --episodes 20000 --seed $SEED \
     --out $RUN &
 sh experiments/controller/generated-v1-setup/pin.sh $RUN runs/generated-v1-s$SEED-pinned &
 wait
