@@ -144,11 +144,23 @@ def evaluate(case: Path, which: list[str], pairs: bool) -> dict[str, Any]:
     return row
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def add_case_set(parser: argparse.ArgumentParser) -> None:
+    """The arguments that name the cases: their directory, and a heldout.json or the tutorials."""
     parser.add_argument("root", type=Path, help="the directory holding the cases")
     parser.add_argument("--set", type=Path, help="a heldout.json: its evaluation cases")
     parser.add_argument("--tutorials", action="store_true", help="the solve benchmark's five tutorials")
+
+
+def case_names(args: argparse.Namespace) -> list[str]:
+    """The cases add_case_set's arguments name, in order."""
+    if args.tutorials:
+        return list(TUTORIALS)
+    return [c["name"] for c in json.loads(args.set.read_text())["cases"] if c["in_evaluation"]]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    add_case_set(parser)
     parser.add_argument("--cases", dest="only", nargs="+", help="these cases only")
     parser.add_argument("--beside", nargs="*", default=[],
                         choices=("bandit", "constant", "guarded", "lean", "residual-rule"),
@@ -157,12 +169,7 @@ def main() -> None:
                         help="no alternated CPU pairs (the CPU ratio from the --compare run)")
     parser.add_argument("--out", type=Path, required=True)
     args = parser.parse_args()
-    if args.only:
-        names = args.only
-    elif args.tutorials:
-        names = list(TUTORIALS)
-    else:
-        names = [c["name"] for c in json.loads(args.set.read_text())["cases"] if c["in_evaluation"]]
+    names = args.only or case_names(args)
     args.out.mkdir(parents=True, exist_ok=True)
     path = args.out / "rows.jsonl"
     held = {json.loads(line)["case"] for line in path.read_text().splitlines()} if path.exists() else set()

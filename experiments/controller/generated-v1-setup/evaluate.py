@@ -52,7 +52,7 @@ def _module(path: Path, name: str) -> Any:
 
 
 GRID = _module(HERE.parent / "generated-ranking" / "rank.py", "rank").GRID
-TUTORIALS = _module(HERE.parents[1] / "solve-safety" / "evaluate.py", "safety_evaluate").TUTORIALS
+SAFETY = _module(HERE.parents[1] / "solve-safety" / "evaluate.py", "safety_evaluate")  # the case sets
 
 
 def solved(case: Path, out: Path, **how: Any) -> dict[str, Any]:
@@ -101,15 +101,12 @@ def evaluate(case: Path, policies: list[Path]) -> dict[str, Any]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("root", type=Path, help="the directory holding the cases")
-    parser.add_argument("--set", type=Path, help="a heldout.json: its evaluation cases")
-    parser.add_argument("--tutorials", action="store_true", help="the solve benchmark's five tutorials")
+    SAFETY.add_case_set(parser)
     parser.add_argument("--policy", type=Path, action="append", required=True,
                         help="a pinned checkpoint's run directory (one per seed)")
     parser.add_argument("--out", type=Path, required=True)
     args = parser.parse_args()
-    names = list(TUTORIALS) if args.tutorials else [
-        c["name"] for c in json.loads(args.set.read_text())["cases"] if c["in_evaluation"]]
+    names = SAFETY.case_names(args)
     args.out.mkdir(parents=True, exist_ok=True)
     path = args.out / "rows.jsonl"
     held = {json.loads(line)["case"] for line in path.read_text().splitlines()} if path.exists() else set()
