@@ -49,7 +49,7 @@ def test_a_recurrent_controller_trains_on_generated_cases_and_solves_with_its_st
     for case in made:  # the generator's own run, not a new one: its CPU seconds are the reward's unit
         entry = written["family"][case.name]
         assert f"{case.name}: " in err and "as the generator ran them" in err
-        assert entry["reward_scale"] == pytest.approx(100.0 / case.cpu_s)
+        assert entry["reward_scale"] == pytest.approx(100.0 / max(case.cpu_s, 1e-3))
         assert entry["observe_gain"] and entry["reward"] == "solver-time"
         own = dict(case.spec.factors)
         assert entry["action_pivot"] == pytest.approx([own["U"], own["p"], own["turbulence"]])  # 0.5: own
