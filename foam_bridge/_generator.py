@@ -60,7 +60,7 @@ MAX_DRAWS_PER_CASE = 3
 #: An own run still going after this long is stopped and rejected (a stuck solver, not a slow case).
 OWN_RUN_LIMIT_S = 1800.0
 _FORMAT = 1
-_CLOCK = re.compile(r"^ExecutionTime = (\S+) s\s+ClockTime = (\S+) s", re.MULTILINE)
+_CLOCK = re.compile(r"^ExecutionTime = \S+ s\s+ClockTime = (\S+) s", re.MULTILINE)
 
 
 def write_case(spec: CaseSpec, dest: Path, resolution: float = 1.0, openfoam: OpenFOAM | None = None) -> Path:
@@ -137,7 +137,8 @@ def run_own(case: Path, openfoam: OpenFOAM, scratch: Path) -> OwnRun:
     clock = _CLOCK.findall(log.read_text(errors="replace"))
     shutil.copyfile(log, case / "log.simpleFoam")
     shutil.rmtree(scratch, ignore_errors=True)
-    cpu, wall = (float(clock[-1][0]), float(clock[-1][1])) if clock else (0.0, 0.0)
+    cpu = parser.execution_time  # the last ExecutionTime, as every run of the bridge counts it
+    wall = float(clock[-1]) if clock else 0.0
     converged = parser.converged_at is not None and code == 0
     iterations = parser.converged_at if parser.converged_at is not None else parser.completed
     return OwnRun(converged, iterations, cpu, wall, code, None if converged else _failure(parser, code))
