@@ -76,18 +76,21 @@ def family_configs(cases: Sequence[Path], template: FoamEnvConfig,
     above, and each case's own criterion, box, algorithm, budget and reward scale (its own run measured)."""
     openfoam, configs = find_openfoam(template.openfoam_path), {}
     names = _names(cases)
+    recorded = _recorded_runs({case.parent for case in cases})
     with tempfile.TemporaryDirectory(prefix="jaxsimrl_family_") as scratch:
         for index, (name, case) in enumerate(zip(names, cases, strict=True)):
             cfg = dataclasses.replace(template, case_dir=str(case), **SHARED)
             work = Path(scratch) / f"case_{index}"
             info = check_case(case, cfg, openfoam, work)  # builds work/checked
-            configs[name] = _case_config(cfg, case, (work / "checked", info), work / "own", say, name)
+            configs[name] = _case_config(cfg, case, (work / "checked", info), work / "own", say, name,
+                                         recorded.get(case))
     return configs
 
 
 def _case_config(cfg: FoamEnvConfig, case: Path, checked: tuple[Path, Any], own_dir: Path,
-                 say: Callable[[str], None], name: str) -> FoamEnvConfig:
-
+                 say: Callable[[str], None], name: str, recorded: OwnCost | None) -> FoamEnvConfig:
+    """``cfg`` made the case's own (see family_configs); its own run: ``recorded`` (the generator's), else
+    run in ``own_dir`` once the checks passed (a case that cannot join the family costs no run)."""
     settings, info = read_case_settings(case, 0), checked[1]
     confirm = None if cfg.confirm_alpha_u is None else check_factor(settings)  # as solve checks the case
     cfg = user_case_config(dataclasses.replace(cfg, simple_variant=settings.variant, confirm_alpha_u=confirm),
@@ -96,7 +99,7 @@ def _case_config(cfg: FoamEnvConfig, case: Path, checked: tuple[Path, Any], own_
     mapping, why = observed_mapping(cfg, info.solved_fields)
     if mapping is None:
         raise ValueError(f"--family: case {case}: {why}")
-    own = _own_run(case, own_dir)
+    own = recorded or _run_own(case, own_dir)
     # a case its own settings do not converge keeps its own budget (the iterations they ran: its endTime)
     iterations = max(own.iterations, cfg.interval)
     budget = math.ceil((BUDGET_FACTOR if own.converged else 1) * iterations / cfg.interval) * cfg.interval
@@ -120,12 +123,17 @@ class OwnCost:
     recorded: bool
 
 
-def _own_run(case: Path, own_dir: Path) -> OwnCost:
-    """The case's own run: the generator's record of it where ``generated.json`` beside the case has one,
-    else run now."""
-    for entry in read_generated(case.parent).get("cases", []):
-        if entry.get("name") == case.name and entry.get("iterations") is not None:
-            return OwnCost(bool(entry["converged"]), int(entry["iterations"]), float(entry["cpu_s"]), True)
+def _recorded_runs(directories: set[Path]) -> dict[Path, OwnCost]:
+    """{case: its own run} as the generator recorded them in each directory's ``generated.json`` (each
+    manifest read once)."""
+    return {directory / entry["name"]: OwnCost(bool(entry["converged"]), int(entry["iterations"]),
+                                               float(entry["cpu_s"]), True)
+            for directory in directories for entry in read_generated(directory).get("cases", [])
+            if entry.get("iterations") is not None}
+
+
+def _run_own(case: Path, own_dir: Path) -> OwnCost:
+    """The case's own run, run now (a case no generator recorded)."""
     own = run_own(case, own_dir, "own", 24 * 3600.0)
     return OwnCost(own.converged, own.iterations, own.cpu_time_s, False)
 
