@@ -6,7 +6,9 @@ Per case and resolution: Spearman's rank correlation of the constants' costs wit
 (a constant that did not converge costs its budget twice: ranked last, ties averaged), and the regret: what
 the constant best on the coarse mesh costs on the full one, over the full one's best. Costs are iterations
 (exact); CPU seconds beside them (noisy on a shared machine). A resolution "agrees" where the median
-correlation is >= 0.8 and the median regret <= 1.05.
+correlation is >= 0.8 and the median regret <= 1.05. Then the headroom at full size: per case, the best
+of the grid (the oracle constant, own settings included) over the case's own settings, in iterations and
+in CPU seconds (each run once).
 
     python experiments/controller/generated-ranking/summary.py
 """
@@ -64,8 +66,32 @@ def main() -> None:
         cells = [f"{found[case][r][0]:.2f} / {found[case][r][1]:.2f}" if r in found.get(case, {}) else "-"
                  for r in resolutions]
         per_case.append(f"| {case} | {own['kind']} | {own['algorithm']} | " + " | ".join(cells) + " |")
-    (HERE / "table.md").write_text("\n".join(lines + per_case) + "\n")
-    print("\n".join(lines + per_case))
+    out = "\n".join(lines + per_case + _headroom(table, cases))
+    (HERE / "table.md").write_text(out + "\n")
+    print(out)
+
+
+def _headroom(table: dict, cases: list[str]) -> list[str]:
+    """Per full-size case: the oracle constant (best converged setting of the grid) over own settings."""
+    lines = ["", "| case (full size) | algorithm | own iterations / CPU s | oracle (iterations) | "
+             "its / own | oracle (CPU) | CPU / own |", "|---|---|---|---|---|---|---|"]
+    its_ratio, cpu_ratio = [], []
+    for case in cases:
+        runs = table.get((case, FULL), {})
+        done = {lab: row for lab, row in runs.items() if row["converged"]}
+        if "own" not in done:
+            continue
+        own = done["own"]
+        by_its = min(done, key=lambda lab: done[lab]["iterations"])
+        by_cpu = min(done, key=lambda lab: done[lab]["cpu_s"])
+        its_ratio.append(done[by_its]["iterations"] / own["iterations"])
+        cpu_ratio.append(done[by_cpu]["cpu_s"] / own["cpu_s"])
+        lines.append(f"| {case} | {own['algorithm']} | {own['iterations']} / {own['cpu_s']:.2f} | {by_its} | "
+                     f"{its_ratio[-1]:.2f} | {by_cpu} | {cpu_ratio[-1]:.2f} |")
+    if its_ratio:
+        lines.append(f"| median of {len(its_ratio)} | | | | {statistics.median(its_ratio):.2f} | | "
+                     f"{statistics.median(cpu_ratio):.2f} |")
+    return lines
 
 
 def _cost(row: dict, key: str = "iterations") -> float:
