@@ -187,6 +187,12 @@ class FoamEnvConfig:
             controller's "0.5" is every case's own settings, above it more aggressive, below more
             cautious); the map is linear from action_low to it and from it to action_high. None: linear
             over the whole box.
+        action_radius: with ``action_share``, the factors at share a are pivot + (2a - 1) x
+            action_radius, clipped into the box (the pivot: ``action_pivot``, else the box's centre):
+            one share moves every factor alike both ways. The piecewise map above moves alpha_u below a
+            pivot of 0.7 in a box from 0.2 twice as far as above it, so a policy's symmetric exploration
+            around share 0.5 drifts cautious (issue 47: experiments/controller/generated-v1-setup/
+            exploration.py). None: that piecewise map.
         pivot_at: what a controller's share 0.5 stands for on a case of its own (the application's rule
             that sets ``action_pivot`` for each case, recorded with the policy so that training and use
             agree): "family" (default), the training family's constant for the case's algorithm; "own",
@@ -252,6 +258,7 @@ class FoamEnvConfig:
     observe_algorithm: bool = False
     action_share: bool = False
     action_pivot: tuple[float, ...] | None = None
+    action_radius: float | None = None
     pivot_at: str = "family"
     reward_scale: float = 1.0
     freeze_decades: float | None = None
@@ -339,6 +346,9 @@ class FoamEnvConfig:
         _check(pivot is None or len(pivot) == len(self.action_low) and all(
             lo <= x <= hi for x, lo, hi in zip(pivot, self.action_low, self.action_high, strict=True)),
             "action_pivot", pivot, "None or one factor per action, each in the box")
+        radius = self.action_radius
+        _check(radius is None or not isinstance(radius, bool) and isinstance(radius, int | float)
+               and 0 < radius <= 1, "action_radius", radius, "None or a factor step in (0, 1]")
         _check(self.pivot_at in PIVOTS, "pivot_at", self.pivot_at, f"one of {', '.join(PIVOTS)}")
         _check(not self.observe_algorithm or self.variant is not None, "observe_algorithm",
                self.observe_algorithm, "simple_variant set (the algorithm observed)")
@@ -475,7 +485,7 @@ class FoamEnvConfig:
 _JSON_TUPLE_FIELDS = ("action_low", "action_high", "turbulence_fields", "inlet_turbulence", "observed_fields",
                       "action_pivot")
 #: Fields to_json leaves out at None (added after runs were written; their JSON stays byte-identical).
-_OMITTED_WHEN_NONE = ("observed_fields", "action_pivot", "freeze_decades")
+_OMITTED_WHEN_NONE = ("observed_fields", "action_pivot", "freeze_decades", "action_radius")
 #: Fields to_json leaves out at their default, for the same reason.
 _OMITTED_AT_DEFAULT = ("observe_state", "observe_algorithm", "action_share", "reward_scale", "observe_gain",
                        "pivot_at")

@@ -88,11 +88,14 @@ def action_spec(cfg: FoamEnvConfig) -> BoxSpec:
 def factors_of(cfg: FoamEnvConfig, action: Any) -> np.ndarray:
     """The factors an action sets, in the box: the action itself, or with ``action_share`` the point
     that share of the way from action_low to action_high (shares clipped into [0, 1]), through
-    ``action_pivot`` at 0.5 where it is set."""
+    ``action_pivot`` at 0.5 where it is set; with ``action_radius``, the pivot moved by (2 share - 1) x
+    that radius, clipped into the box."""
     low, high = np.asarray(cfg.action_low, np.float64), np.asarray(cfg.action_high, np.float64)
     if not cfg.action_share:
         return clip_to_box(action, low, high)
     share = np.clip(np.asarray(action, np.float64), 0.0, 1.0)
+    if cfg.action_radius is not None:
+        return clip_to_box(_pivot(cfg, low, high) + (2 * share - 1) * cfg.action_radius, low, high)
     if cfg.action_pivot is None:
         return clip_to_box(low + share * (high - low), low, high)
     pivot = np.asarray(cfg.action_pivot, np.float64)
@@ -106,9 +109,16 @@ def shares_of(cfg: FoamEnvConfig, factors: Any) -> np.ndarray:
         return np.asarray(factors, np.float64)
     low, high = np.asarray(cfg.action_low, np.float64), np.asarray(cfg.action_high, np.float64)
     factors = np.clip(np.asarray(factors, np.float64), low, high)
+    if cfg.action_radius is not None:
+        return np.clip(0.5 + (factors - _pivot(cfg, low, high)) / (2 * cfg.action_radius), 0.0, 1.0)
     if cfg.action_pivot is None:
         return (factors - low) / np.where(high > low, high - low, 1.0)
     pivot = np.asarray(cfg.action_pivot, np.float64)
     below = 0.5 * (factors - low) / np.where(pivot > low, pivot - low, 1.0)
     above = 0.5 + 0.5 * (factors - pivot) / np.where(high > pivot, high - pivot, 1.0)
     return np.clip(np.where(factors < pivot, below, above), 0.0, 1.0)
+
+
+def _pivot(cfg: FoamEnvConfig, low: np.ndarray, high: np.ndarray) -> np.ndarray:
+    """The factors at share 0.5: ``action_pivot``, else the box's centre."""
+    return (low + high) / 2 if cfg.action_pivot is None else np.asarray(cfg.action_pivot, np.float64)

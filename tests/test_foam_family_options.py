@@ -191,3 +191,24 @@ def test_pivot_at_own_puts_share_one_half_at_the_case_s_own_factors() -> None:
     assert "pivot_at" not in FoamEnvConfig().to_json() and FoamEnvConfig.from_json(plain.to_json()) == plain
     with pytest.raises(ValueError, match="pivot_at"):
         FoamEnvConfig(pivot_at="mine").validate()
+
+
+def test_a_radius_moves_every_factor_alike_both_ways_from_the_pivot() -> None:
+    cfg = FoamEnvConfig(action_low=(0.2, 0.2, 0.2), action_high=(0.95, 0.95, 0.95), relax_k_omega="action",
+                        action_share=True, action_pivot=(0.7, 0.3, 0.9), action_radius=0.2)
+    assert factors_of(cfg, [0.5] * 3) == pytest.approx([0.7, 0.3, 0.9])
+    # a share of 0.25 either way of one half is 0.1 either way of the pivot (the piecewise map: 0.25 down
+    # and 0.0625 up for alpha_u), and the box still bounds it
+    assert factors_of(cfg, [0.25, 0.25, 0.75]) == pytest.approx([0.6, 0.2, 0.95])
+    assert factors_of(cfg, [0.75, 0.0, 1.0]) == pytest.approx([0.8, 0.2, 0.95])
+    for factors in ([0.7, 0.3, 0.9], [0.55, 0.45, 0.75], [0.85, 0.2, 0.95]):
+        assert factors_of(cfg, shares_of(cfg, factors)) == pytest.approx(factors)
+    assert shares_of(cfg, [0.2, 0.95, 0.9]) == pytest.approx([0.0, 1.0, 0.5])  # beyond the radius: its edge
+    centred = FoamEnvConfig(action_low=(0.2, 0.4), action_high=(0.6, 1.0), action_share=True,
+                            action_radius=0.1)
+    assert factors_of(centred, [0.5, 1.0]) == pytest.approx([0.4, 0.8])  # no pivot: the box's centre
+    assert FoamEnvConfig.from_json(cfg.to_json()) == cfg and "action_radius" not in FoamEnvConfig().to_json()
+    for bad in (0.0, -0.1, 1.5, True):
+        with pytest.raises(ValueError, match="action_radius"):
+            FoamEnvConfig(action_radius=bad).validate()
+

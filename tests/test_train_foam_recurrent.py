@@ -19,7 +19,8 @@ from jaxsimrl.apps.foam.cli.train_family import family_case_dirs
 from jaxsimrl.apps.foam.solve import solve_case
 
 RECURRENT = {"ppo": {"network": "lstm", "hidden_sizes": [16], "lstm_size": 16, "seq_len": 4,
-                     "num_minibatches": 1, "update_epochs": 1}, "foam": {"interval": 25, "pivot_at": "own"}}
+                     "num_minibatches": 1, "update_epochs": 1},
+             "foam": {"interval": 25, "pivot_at": "own", "action_radius": 0.15}}
 TINY = ["--pool", "2", "--num-envs", "2", "--steps-per-update", "8", "--residual-features", "2",
         "--observe-progress", "--observe-action", "--observe-gain", "--reward", "solver-time"]
 
@@ -63,3 +64,4 @@ def test_a_recurrent_controller_trains_on_generated_cases_and_solves_with_its_st
     data = json.loads((out / "solve.json").read_text())
     assert report.iterations > 0 and data["steps"][0]["source"] == "controller"
     assert data["settings"]["action_pivot"] == pytest.approx(written["family"][made[0].name]["action_pivot"])
+    assert data["settings"]["action_radius"] == 0.15  # the policy's action means what it meant in training

@@ -145,6 +145,7 @@ def build_report(case: Path, out: Path, controller: Any, cfg: Any, run: Any, res
             "settings": {"criterion": dict(cfg.convergence), "confirm_alpha_u": cfg.confirm_alpha_u,
                          "action_low": list(cfg.action_low), "action_high": list(cfg.action_high),
                          "action_pivot": None if cfg.action_pivot is None else list(cfg.action_pivot),
+                         "action_radius": cfg.action_radius,
                          "interval": cfg.interval, "max_iterations": cfg.max_iterations,
                          "observed_fields": observed},
             "result": result, "fallback": run.events, "steps": run.steps,

@@ -39,7 +39,7 @@ from jaxsimrl.apps.foam.solve.fields import observed_mapping
 #: FoamEnvConfig fields that define the policy's MDP (observation, action meaning); copied when present.
 POLICY_FIELDS = ("interval", "residual_features", "state_scale", "observe_progress", "observe_action",
                  "observe_gain", "scale_free_state", "observe_state", "observe_algorithm", "action_share",
-                 "pivot_at")
+                 "pivot_at", "action_radius")
 #: The policy's turbulence setting that is part of its action (helper config: a third action).
 TURBULENCE_ACTION = "action"
 #: The iteration budget when the case's controlDict gives none (endTime / deltaT).
