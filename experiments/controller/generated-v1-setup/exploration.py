@@ -6,7 +6,10 @@ the generator manifests of its cases, per algorithm:
   mean alpha_u, alpha_p and alpha_t minus the case's own), and where they sat on average;
 - how noisy one case's cost is between episodes (median over cases met 4 times or more of the coefficient
   of variation of converged episodes' iterations and solver CPU seconds);
-- the outcomes (converged, truncated at the budget, diverged).
+- the outcomes (converged, truncated at the budget, diverged);
+- what the factors do to the price of an iteration: within each case, a least-squares fit of
+  log(CPU seconds per iteration) on the episode's mean factors (deviations from the case's means), its
+  change per +0.1 of each factor and the share of the variance it explains.
 
     python experiments/controller/generated-v1-setup/exploration.py RUN MANIFEST_DIR... [--last N]
 """
@@ -45,11 +48,28 @@ def main() -> None:
               f"played minus own (U, p, turbulence): mean {np.round(offsets.mean(0), 3).tolist()}, spread "
               f"{np.round(offsets.std(0), 3).tolist()}; within a case, cost varies by {its_cv:.1%} in "
               f"iterations, {cpu_cv:.1%} in CPU seconds (median CV)")
+        slope, explained = _price_fit(found)
+        print(f"  log(CPU s per iteration) per +0.1 of (U, p, turbulence): {np.round(slope, 3).tolist()}, "
+              f"R^2 {explained:.2f}")
 
 
 def _offset(row: dict, own: dict[str, float]) -> list[float]:
     actions = np.asarray(json.loads(row["actions"]))
     return list(actions.mean(0) - [own["U"], own["p"], own["turbulence"]])
+
+
+def _price_fit(rows: list[dict]) -> tuple[np.ndarray, float]:
+    by_case: dict[str, list[list[float]]] = defaultdict(list)
+    for row in rows:
+        if row["outcome"] == "converged":
+            factors = np.asarray(json.loads(row["actions"])).mean(0)
+            by_case[row["case"]].append([np.log(float(row["solver_time_s"]) / int(row["iterations"])),
+                                         *factors])
+    centred = [np.asarray(v) - np.mean(v, axis=0) for v in by_case.values() if len(v) >= 5]
+    data = np.concatenate(centred)
+    slope = np.linalg.lstsq(data[:, 1:], data[:, 0], rcond=None)[0]
+    residual = data[:, 0] - data[:, 1:] @ slope
+    return 0.1 * slope, float(1 - residual.var() / data[:, 0].var())
 
 
 def _noise(rows: list[dict]) -> tuple[float, float]:
