@@ -211,4 +211,3 @@ def test_a_radius_moves_every_factor_alike_both_ways_from_the_pivot() -> None:
     for bad in (0.0, -0.1, 1.5, True):
         with pytest.raises(ValueError, match="action_radius"):
             FoamEnvConfig(action_radius=bad).validate()
-

@@ -37,7 +37,8 @@ def main() -> None:
              for case in read_generated(directory)["cases"]}
     rows = list(csv.DictReader((args.run / "episodes.csv").open()))
     if args.last:
-        rows = [r for r in rows if int(r["update"]) > max(int(r["update"]) for r in rows) - args.last]
+        first = max(int(r["update"]) for r in rows) - args.last
+        rows = [r for r in rows if int(r["update"]) > first]
     by_algorithm: dict[str, list[dict]] = defaultdict(list)
     for row in rows:
         by_algorithm[specs[row["case"]]["algorithm"]].append(row)
@@ -53,19 +54,30 @@ def main() -> None:
               f"R^2 {explained:.2f}")
 
 
+def _mean_factors(row: dict) -> np.ndarray:
+    """The factors an episode played, averaged over its steps (U, p, turbulence)."""
+    return np.asarray(json.loads(row["actions"])).mean(0)
+
+
 def _offset(row: dict, own: dict[str, float]) -> list[float]:
-    actions = np.asarray(json.loads(row["actions"]))
-    return list(actions.mean(0) - [own["U"], own["p"], own["turbulence"]])
+    return list(_mean_factors(row) - [own["U"], own["p"], own["turbulence"]])
+
+
+def _converged_by_case(rows: list[dict], least: int) -> list[list[dict]]:
+    """The converged episodes of each case met ``least`` times or more."""
+    by_case: dict[str, list[dict]] = defaultdict(list)
+    for row in rows:
+        if row["outcome"] == "converged":
+            by_case[row["case"]].append(row)
+    return [found for found in by_case.values() if len(found) >= least]
 
 
 def _price_fit(rows: list[dict]) -> tuple[np.ndarray, float]:
-    by_case: dict[str, list[list[float]]] = defaultdict(list)
-    for row in rows:
-        if row["outcome"] == "converged":
-            factors = np.asarray(json.loads(row["actions"])).mean(0)
-            by_case[row["case"]].append([np.log(float(row["solver_time_s"]) / int(row["iterations"])),
-                                         *factors])
-    centred = [np.asarray(v) - np.mean(v, axis=0) for v in by_case.values() if len(v) >= 5]
+    centred = []
+    for found in _converged_by_case(rows, 5):
+        data = np.array([[np.log(float(r["solver_time_s"]) / int(r["iterations"])), *_mean_factors(r)]
+                         for r in found])
+        centred.append(data - data.mean(0))
     data = np.concatenate(centred)
     slope = np.linalg.lstsq(data[:, 1:], data[:, 0], rcond=None)[0]
     residual = data[:, 0] - data[:, 1:] @ slope
@@ -73,12 +85,8 @@ def _price_fit(rows: list[dict]) -> tuple[np.ndarray, float]:
 
 
 def _noise(rows: list[dict]) -> tuple[float, float]:
-    by_case: dict[str, list[dict]] = defaultdict(list)
-    for row in rows:
-        if row["outcome"] == "converged":
-            by_case[row["case"]].append(row)
     its, cpu = [], []
-    for found in (found for found in by_case.values() if len(found) >= 4):
+    for found in _converged_by_case(rows, 4):
         for key, into in (("iterations", its), ("solver_time_s", cpu)):
             values = np.array([float(r[key]) for r in found])
             into.append(values.std() / values.mean())

@@ -13,14 +13,15 @@ import statistics
 from collections import Counter
 from pathlib import Path
 
+from foam_bridge import GEOMETRY_KINDS
+
 HERE = Path(__file__).resolve().parent / "manifests"
-KINDS = ("step", "rib", "bump", "contraction", "diffuser", "bend")
 
 
 def rows(name: str) -> list[str]:
     manifest = json.loads((HERE / name).read_text())
     out = []
-    for kind in (*KINDS, "all"):
+    for kind in (*GEOMETRY_KINDS, "all"):
         cases = [c for c in manifest["cases"] if kind in ("all", c["spec"]["kind"])]
         rejected = [r for r in manifest["rejected"] if kind in ("all", r["spec"]["kind"])]
         why = Counter("crashed" if "crashed" in r["reason"] else "diverged" if "diverged" in r["reason"]
