@@ -151,6 +151,14 @@ class FoamEnvConfig:
             test, and the check runs at every later step boundary whose residuals meet the criterion;
             the first one that passes ends the episode (converged at that boundary). Every check is
             in the episode record's "confirmations".
+        confirm_alpha_t: the check's factor for the turbulence fields when alpha_t is an action
+            (``relax_k_omega`` "action"); ``None`` (default): ``confirm_alpha_u``. solve
+            sets the case's own turbulence factor, so that k/epsilon/omega are held to the normalisation
+            the user's own run reads, as U is: checked at the own alpha_u, a SIMPLEC case whose own
+            turbulence factor is below its alpha_u (0.77 and 0.89) failed the check at its own factors,
+            and its run went on to the next step boundary (1.10-1.21x own iterations on 4 of 12
+            generated cases;
+            experiments/controller/generated-v1-setup/control-overhead-alpha-u-check.jsonl).
         residual_features: extra observation entries: log10 of the latest initial residual of each
             observed field (:attr:`observed`) at each of the last N step boundaries (0 = the paper's 1-D
             state; before the first boundaries: 0). Their trends are the differences of these levels,
@@ -252,6 +260,7 @@ class FoamEnvConfig:
     relax_k_omega: float | str | None = None
     convergence: Mapping[str, float] = field(default_factory=lambda: dict(TRAIN_CONVERGENCE))
     confirm_alpha_u: float | None = None
+    confirm_alpha_t: float | None = None
     residual_features: int = 0
     reward: str = "iterations"
     observe_state: bool = True
@@ -330,6 +339,11 @@ class FoamEnvConfig:
             factor = self.confirm_alpha_u
             _check(isinstance(factor, int | float) and not isinstance(factor, bool) and 0 < factor < 1,
                    "confirm_alpha_u", factor, "None or a factor in (0, 1)")
+        if self.confirm_alpha_t is not None:
+            factor = self.confirm_alpha_t
+            _check(isinstance(factor, int | float) and not isinstance(factor, bool) and 0 < factor <= 1
+                   and self.confirm_alpha_u is not None, "confirm_alpha_t", factor,
+                   "None, or a factor in (0, 1] beside a confirm_alpha_u")
         _check(_is_int(self.residual_features) and self.residual_features >= 0, "residual_features",
                self.residual_features, "an integer >= 0")
         if self.observed_fields is not None:
@@ -485,7 +499,7 @@ class FoamEnvConfig:
 _JSON_TUPLE_FIELDS = ("action_low", "action_high", "turbulence_fields", "inlet_turbulence", "observed_fields",
                       "action_pivot")
 #: Fields to_json leaves out at None (added after runs were written; their JSON stays byte-identical).
-_OMITTED_WHEN_NONE = ("observed_fields", "action_pivot", "freeze_decades", "action_radius")
+_OMITTED_WHEN_NONE = ("observed_fields", "action_pivot", "freeze_decades", "action_radius", "confirm_alpha_t")
 #: Fields to_json leaves out at their default, for the same reason.
 _OMITTED_AT_DEFAULT = ("observe_state", "observe_algorithm", "action_share", "reward_scale", "observe_gain",
                        "pivot_at")

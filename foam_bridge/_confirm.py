@@ -13,8 +13,10 @@ The check normalises at one fixed relaxation instead: one SIMPLE iteration from 
 scratch copy of the case at iteration K, started from its latest time) with alpha_u =
 ``confirm_alpha_u``, the step's alpha_p and the case's turbulence factor, whose initial residuals are
 read from its log. When the turbulence factor is the agent's (alpha_t, or alpha_u that it follows), the
-agent can move the k/omega residuals the same way: the check then relaxes them at ``confirm_alpha_u`` too,
-and checks them when the step relaxed them *below* it. A policy trained with the step's alpha_t in the
+agent can move the k/omega residuals the same way: the check then relaxes them at ``confirm_alpha_u`` too
+(at ``confirm_alpha_t`` when it is set and alpha_t is an action: solve sets the case's own turbulence
+factor, the normalisation the user's own run reads), and checks them when the step relaxed them *below*
+that factor. A policy trained with the step's alpha_t in the
 check learned to drop alpha_t to ~0.3 on its last step (experiments/controller/README.md). A step at a
 factor >= ``confirm_alpha_u`` was held by the solver's own test to a normalisation at least as strict as
 the check's (U at 0.95 reads 0.83-0.88 x at 0.9), so nothing was gained and they are not re-read: a
@@ -108,10 +110,18 @@ def _checked_fields(cfg: FoamEnvConfig, turbulence: Sequence[str] | None = None,
     SIMPLE, p reads 5.7e-2 at alpha_u 0.9 from fields converged to 1e-6 at 0.7; on T3A, see above)."""
     if cfg.k_omega_relaxation not in (FOLLOW_ALPHA_U, K_OMEGA_ACTION):
         return (cfg.velocity_field,)
-    check = cfg.confirm_alpha_u
+    check = turbulence_check_factor(cfg)
     if step_factor is not None and check is not None and step_factor >= check - _FACTOR_TOLERANCE:
         return (cfg.velocity_field,)
     return (cfg.velocity_field, *(cfg.turbulence_fields if turbulence is None else turbulence))
+
+
+def turbulence_check_factor(cfg: FoamEnvConfig) -> float | None:
+    """The factor the check relaxes (and judges) the turbulence fields at when the agent sets them:
+    ``confirm_alpha_t`` where set and alpha_t is an action, else ``confirm_alpha_u``."""
+    if cfg.confirm_alpha_t is not None and cfg.k_omega_relaxation == K_OMEGA_ACTION:
+        return cfg.confirm_alpha_t
+    return cfg.confirm_alpha_u
 
 
 def confirm(episode: Path, base: Path, cfg: FoamEnvConfig, openfoam: OpenFOAM, iteration: int,
@@ -120,7 +130,8 @@ def confirm(episode: Path, base: Path, cfg: FoamEnvConfig, openfoam: OpenFOAM, i
     """Check the fields the episode case wrote at ``iteration`` at alpha_u = ``cfg.confirm_alpha_u``
     (``flat``: the case's relaxationFactors use the old flat layout; ``turbulence``: the fields alpha_t
     relaxes when it is an action, see case.relaxation_text). When alpha_t is an action they are relaxed
-    at ``confirm_alpha_u`` too, whatever the step's alpha_t was; otherwise at the env's fixed factor.
+    at :func:`turbulence_check_factor`, whatever the step's alpha_t was; otherwise at the env's fixed
+    factor.
     ``step_factor``: the step's own turbulence factor (:func:`step_turbulence_factor`), which decides
     whether they are checked (:func:`_checked_fields`)."""
     assert cfg.confirm_alpha_u is not None
@@ -128,7 +139,7 @@ def confirm(episode: Path, base: Path, cfg: FoamEnvConfig, openfoam: OpenFOAM, i
     scratch = episode.parent / CHECK_DIR
     # the third factor is read only with alpha_t an action (relaxation_text): the agent's own is not used
     fixed = cfg.confirm_alpha_u
-    text = episode_case.relaxation_text(cfg, fixed, alpha_p, flat, fixed, turbulence)
+    text = episode_case.relaxation_text(cfg, fixed, alpha_p, flat, turbulence_check_factor(cfg), turbulence)
     parser = LogParser(episode_case.CELLS_FUNCTION, episode_case.INLET_FUNCTION, cfg.divergence_threshold)
     error = ""
     try:

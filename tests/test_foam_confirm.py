@@ -11,13 +11,16 @@ first iteration, is confirmed where its criterion is met: tests/test_solve_field
 from __future__ import annotations
 
 import dataclasses
+import json
+import math
 
 import numpy as np
 import pytest
 from foam_marks import needs_openfoam
 
+from foam_bridge import sample_specs, write_case
 from foam_bridge._config import FoamEnvConfig, without_convergence_test
-from foam_bridge._confirm import _checked_fields, meets, step_turbulence_factor
+from foam_bridge._confirm import _checked_fields, meets, step_turbulence_factor, turbulence_check_factor
 from foam_bridge._env import FoamCaseEnv
 from foam_bridge._logparse import LogParser, solver_cost
 from jaxsimrl.cli.main import main
@@ -130,6 +133,52 @@ def test_the_check_factor_is_validated():
         with pytest.raises(ValueError, match="confirm_alpha_u"):
             FoamEnvConfig(confirm_alpha_u=bad).validate()
     assert FoamEnvConfig(confirm_alpha_u=0.9).validate().confirm_alpha_u == 0.9
+    for bad in (0, 1.2, True, "0.8"):
+        with pytest.raises(ValueError, match="confirm_alpha_t"):
+            FoamEnvConfig(confirm_alpha_u=0.9, confirm_alpha_t=bad).validate()
+    with pytest.raises(ValueError, match="confirm_alpha_t"):  # a turbulence check without a check
+        FoamEnvConfig(confirm_alpha_t=0.8).validate()
+    cfg = FoamEnvConfig(confirm_alpha_u=0.9, confirm_alpha_t=1.0).validate()  # unrelaxed k: read at 1
+    assert FoamEnvConfig.from_json(cfg.to_json()) == cfg
+    assert "confirm_alpha_t" not in FoamEnvConfig(confirm_alpha_u=0.9).to_json()  # old runs' JSON as it was
+
+
+def test_the_turbulence_fields_are_judged_at_their_own_check_factor():
+    """confirm_alpha_t (solve: the case's own turbulence factor) replaces confirm_alpha_u for k/epsilon/
+    omega when alpha_t is an action: a step at or above it is not re-read, one below it is."""
+    cfg = FoamEnvConfig(relax_k_omega="action", confirm_alpha_u=0.81, confirm_alpha_t=0.77)
+    assert turbulence_check_factor(cfg) == 0.77
+    for alpha_t, checked in ((0.77, ("U",)), (0.8, ("U",)), (0.76, ("U", "k", "omega"))):
+        assert _checked_fields(cfg, None, step_turbulence_factor(cfg, (0.81, 1.0, alpha_t))) == checked
+    follow = dataclasses.replace(cfg, relax_k_omega="alpha_u")  # alpha_u's factor, alpha_u's check
+    assert turbulence_check_factor(follow) == 0.81
+    assert _checked_fields(follow, None, step_turbulence_factor(follow, (0.8, 1.0))) == ("U", "k", "omega")
+    assert turbulence_check_factor(dataclasses.replace(cfg, confirm_alpha_t=None)) == 0.81
+
+
+@pytest.mark.slow  # three real runs of a generated case
+@needs_openfoam
+def test_a_controller_at_the_own_factors_converges_where_the_own_run_does(tmp_path, monkeypatch):
+    """A generated SIMPLEC case (own alpha_u 0.81, turbulence 0.77, 113 iterations) driven at its own
+    factors in steps of 25: checked at the own alpha_u, k/epsilon read higher than the user's run reads
+    them, the check fails and the run goes on to the next boundary; at the own turbulence factor (solve's
+    default check) it stops where the own run stops."""
+    from jaxsimrl.apps.foam.solve import rules, runner, solve_case
+    from jaxsimrl.apps.foam.solve.own import run_own
+
+    spec = sample_specs(12, 1)[9]
+    assert spec.algorithm == "SIMPLEC" and dict(spec.factors)["turbulence"] < dict(spec.factors)["U"]
+    case = write_case(spec, tmp_path / "case", resolution=1.0)
+    own = run_own(case, tmp_path / "own", "own", 600.0)
+    assert own.converged and own.iterations % 25  # its criterion is met between two step boundaries
+    monkeypatch.setitem(rules.INTERVALS, "own", 25)  # the own rule, stepped as a controller steps
+    monkeypatch.setattr(runner, "DEFAULT_RULE", "(none)")  # (solve runs its default plain)
+    stepped = solve_case(case, tmp_path / "stepped", rule="own")
+    settings = json.loads((tmp_path / "stepped" / "solve.json").read_text())["settings"]
+    assert settings["confirm_alpha_u"] == 0.81 and settings["confirm_alpha_t"] == 0.77
+    assert stepped.iterations == own.iterations
+    strict = solve_case(case, tmp_path / "strict", rule="own", confirm_alpha_u=0.81)  # k checked at 0.81
+    assert strict.iterations == 25 * math.ceil(own.iterations / 25) > own.iterations
 
 
 @pytest.mark.parametrize("command", [["train-foam"], ["eval-foam", "some_run"],

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from foam_bridge import LogParser, field_residual
+from foam_bridge import K_OMEGA_ACTION, LogParser, field_residual
 from jaxsimrl.apps.foam.solve.agreement import spread_line, summary_line
 from jaxsimrl.apps.foam.solve.criterion import describe
 from jaxsimrl.runs.atomic import atomic_write_bytes, atomic_write_json
@@ -143,6 +143,9 @@ def build_report(case: Path, out: Path, controller: Any, cfg: Any, run: Any, res
     data = {"status": "complete", "case": str(case), "out": str(out), "time_utc": _now(),
             "cores": os.cpu_count(), "controller": controller.provenance,
             "settings": {"criterion": dict(cfg.convergence), "confirm_alpha_u": cfg.confirm_alpha_u,
+                         # the turbulence fields' check factor, where the controller sets alpha_t
+                         "confirm_alpha_t": (cfg.confirm_alpha_t or cfg.confirm_alpha_u
+                                             if cfg.relax_k_omega == K_OMEGA_ACTION else None),
                          "action_low": list(cfg.action_low), "action_high": list(cfg.action_high),
                          "action_pivot": None if cfg.action_pivot is None else list(cfg.action_pivot),
                          "action_radius": cfg.action_radius,

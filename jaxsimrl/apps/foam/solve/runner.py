@@ -62,6 +62,7 @@ from jaxsimrl.apps.foam.solve.settings import (
     read_case_settings,
     solve_config,
     start_of,
+    turbulence_check,
     with_own,
 )
 from jaxsimrl.apps.foam.solve.solvers import make_lean
@@ -96,10 +97,11 @@ def solve_case(case: str | Path, out: str | Path, policy: Any = None,
     (rules.DEFAULT_RULE): the user's own run, its iterations and its answer. Bad
     input (a missing or decomposed case, a non-empty ``out``, a case the bridge cannot drive, a bad
     policy): one-line ValueError before any result is claimed. ``confirm_alpha_u``: the convergence
-    check's alpha_u (foam_bridge._confirm; "own", the default: the case's own alpha_u, see
-    :func:`jaxsimrl.apps.foam.solve.settings.check_factor`; None: no check). ``action_box`` replaces the
-    case's own box (experiments only); ``inlet_patch``: the patch whose mean |U|^2 the controller observes
-    (None: the case's ``inlet``, if it has one);
+    check's alpha_u (foam_bridge._confirm; "own", the default: the case's own alpha_u and, for a
+    controller that sets alpha_t, its own turbulence factor, see
+    :func:`jaxsimrl.apps.foam.solve.settings.check_factor` and ``turbulence_check``; None: no check).
+    ``action_box`` replaces the case's own box (experiments only); ``inlet_patch``: the patch whose
+    mean |U|^2 the controller observes (None: the case's ``inlet``, if it has one);
     ``residual``: the convergence criterion instead of the case's residualControl, for every run of the
     solve and written into ``out``'s fvSolution (jaxsimrl.apps.foam.solve.criterion: ``1e-4``, ``{"p": 1e-3}``
     or ``"p=1e-3,U=1e-4"``); ``from_time``: the case's time directory to start from (default its latest:
@@ -191,7 +193,8 @@ def _solve(case: Path, out: Path, policy: Any, compare: bool, constant: Sequence
                          f"--max-iterations N (or --from-time)")
     budget = max_iterations or settings.budget or DEFAULT_MAX_ITERATIONS
     # the check holds a controller's factors to the case's own normalisation: the case's own factors need none
-    confirm = None if rule == DEFAULT_RULE else check_factor(settings) if confirm == OWN_CHECK else confirm
+    confirm = (None if rule == DEFAULT_RULE else (check_factor(settings), turbulence_check(settings))
+               if confirm == OWN_CHECK else confirm)
     ranks, keep_decomposed = parallel_run
     cfg, checked = solve_config(case, trained, out / WORK_DIR, budget, confirm, *env, residual=residual,
                                 start_time=start, settings=settings)

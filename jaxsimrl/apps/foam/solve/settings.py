@@ -170,7 +170,8 @@ def _budget(control: dict[str, Any]) -> int | None:
 
 
 def solve_config(case: Path, policy_cfg: FoamEnvConfig, work: Path, max_iterations: int,
-                 confirm_alpha_u: float | None, action_box: tuple[Sequence[float], Sequence[float]] | None,
+                 confirm_alpha_u: float | None | tuple[float, float | None],
+                 action_box: tuple[Sequence[float], Sequence[float]] | None,
                  step_timeout_s: float, inlet_patch: str | None = None,
                  residual: Residual | str | None = None, start_time: int = 0,
                  settings: CaseSettings | None = None) -> tuple[FoamEnvConfig, CheckedCase]:
@@ -187,7 +188,9 @@ def solve_config(case: Path, policy_cfg: FoamEnvConfig, work: Path, max_iteratio
     copy, mesh and dry run, foam_bridge._base_case.check_case), from this config before the case's own
     criterion, box and observed fields are applied, and none enters the build (the dry run relaxes with
     the case's own factors, or the box's lower corner, which is the built-in one for a case without own
-    factors)."""
+    factors). ``confirm_alpha_u``: the check's alpha_u, or (alpha_u, turbulence factor), see
+    FoamEnvConfig.confirm_alpha_t."""
+    confirm_u, confirm_t = confirm_alpha_u if isinstance(confirm_alpha_u, tuple) else (confirm_alpha_u, None)
     copied = {name: getattr(policy_cfg, name) for name in POLICY_FIELDS if hasattr(policy_cfg, name)}
     if getattr(policy_cfg, "relax_k_omega", None) == TURBULENCE_ACTION:
         copied["relax_k_omega"] = TURBULENCE_ACTION
@@ -199,7 +202,7 @@ def solve_config(case: Path, policy_cfg: FoamEnvConfig, work: Path, max_iteratio
     interval = min(copied.get("interval", 100), max_iterations)
     inlet_patch = inlet_of(case, inlet_patch, find_openfoam(policy_cfg.openfoam_path))
     cfg = FoamEnvConfig(**{**copied, "interval": interval}, case_dir=case, max_iterations=max_iterations,
-                        confirm_alpha_u=confirm_alpha_u, work_dir=work, keep_cases=True,
+                        confirm_alpha_u=confirm_u, confirm_alpha_t=confirm_t, work_dir=work, keep_cases=True,
                         step_timeout_s=step_timeout_s, inlet_patch=inlet_patch, start_time=start_time)
     explicit: list[str] = []
     if action_box is not None:
@@ -266,6 +269,15 @@ def check_factor(settings: CaseSettings) -> float:
     airFoil2D, U reads 2.3e-5 at 0.9 from fields the solver reads 6.9e-6 at 0.7 (criterion 1e-5)."""
     own = settings.factors[0]
     return own if own is not None and 0 < own < 1 else UNRELAXED_CHECK
+
+
+def turbulence_check(settings: CaseSettings) -> float | None:
+    """The convergence check's factor for the turbulence fields of a controller that sets alpha_t
+    (FoamEnvConfig.confirm_alpha_t): the case's own turbulence factor, as :func:`check_factor` takes its
+    own alpha_u; None (the check's alpha_u) when the case sets none. Checked at the own alpha_u instead,
+    a SIMPLEC case whose own turbulence factor is below its alpha_u failed the check at its own factors."""
+    own = settings.factors[2]
+    return own if own is not None and 0 < own <= 1 else None
 
 
 def unrelaxed_as_one(settings: CaseSettings) -> list[float]:
