@@ -234,6 +234,13 @@ class FoamEnvConfig:
             measured at mesh_scale 0.25-0.4 peaked at 13 x (typically 1-6 x), diverging ones reached
             1e26 x within ~50 iterations; the default 1e3 catches a blow-up long before the observation
             leaves float32's range. (The observation is also clipped to +-OBSERVATION_BOUND.)
+        state_interval: the state's function objects (mean |U|^2 over the cells and the inlet) run every
+            this many iterations of OpenFOAM's time index (a divisor of ``interval``; a run started from
+            a later time counts from that time's index, so a step boundary may go without its state): 1
+            (default) every iteration. They cost 3-5 % of a small case's solver CPU
+            (experiments/controller/generated-v1-setup/function-objects.jsonl); solve runs them every 5
+            for a controller that does not observe the state, whose only use of it is the divergence
+            check above (a blow-up takes ~50 iterations to leave float32's range).
 
     Host:
         step_timeout_s: watchdog: wall-clock seconds one step may take before the solver counts as hung.
@@ -275,6 +282,7 @@ class FoamEnvConfig:
     failure_penalty: float | None = None
     divergence_threshold: float = 1e3
     state_divergence_ratio: float = 1e3
+    state_interval: int = 1
     step_timeout_s: float = 120.0
     work_dir: Path | str | None = None
     keep_cases: bool = False
@@ -319,6 +327,9 @@ class FoamEnvConfig:
         _check(_is_int(self.ranks) and self.ranks >= 1 and (self.ranks == 1 or not self.builtin), "ranks",
                self.ranks, "an integer >= 1 (> 1 only for a user's case_dir)")
         _check(_is_int(self.interval) and self.interval >= 1, "interval", self.interval, "an integer >= 1")
+        _check(_is_int(self.state_interval) and self.state_interval >= 1
+               and self.interval % self.state_interval == 0, "state_interval", self.state_interval,
+               f"an integer >= 1 that divides interval ({self.interval})")
         _check(_is_int(self.max_iterations) and self.max_iterations >= self.interval, "max_iterations",
                self.max_iterations, "an integer >= interval")
         size = self.action_size
@@ -502,7 +513,7 @@ _JSON_TUPLE_FIELDS = ("action_low", "action_high", "turbulence_fields", "inlet_t
 _OMITTED_WHEN_NONE = ("observed_fields", "action_pivot", "freeze_decades", "action_radius", "confirm_alpha_t")
 #: Fields to_json leaves out at their default, for the same reason.
 _OMITTED_AT_DEFAULT = ("observe_state", "observe_algorithm", "action_share", "reward_scale", "observe_gain",
-                       "pivot_at")
+                       "pivot_at", "state_interval")
 
 
 def _to_json(value: Any) -> Any:

@@ -334,21 +334,23 @@ def _switches(cfg: FoamEnvConfig) -> dict[str, Any]:
 
 
 def _function_objects(cfg: FoamEnvConfig, case: Path, pause: bool, after: int = 0) -> dict[str, Any]:
-    """The paper's state printed every iteration, then the pause after every ``interval`` iterations
-    (only after iteration ``after``: a restarted solver must not swap in the copies of earlier pauses)."""
-    every_iteration = {"executeControl": "timeStep", "executeInterval": 1, "writeControl": "timeStep",
-                       "writeInterval": 1, "log": True, "writeToFile": False, "writeFields": False}
+    """The paper's state printed every ``state_interval`` iterations (every step boundary), then the pause
+    after every ``interval`` iterations (only after iteration ``after``: a restarted solver must not swap
+    in the copies of earlier pauses)."""
+    every = cfg.state_interval
+    state_every = {"executeControl": "timeStep", "executeInterval": every, "writeControl": "timeStep",
+                       "writeInterval": every, "log": True, "writeToFile": False, "writeFields": False}
     functions: dict[str, Any] = {
         "foamBridgeMagSqrU": {"type": "magSqr", "libs": _FIELD_LIBS, "field": cfg.velocity_field,
-                              "result": STATE_FIELD, "executeControl": "timeStep", "executeInterval": 1,
+                              "result": STATE_FIELD, "executeControl": "timeStep", "executeInterval": every,
                               "writeControl": "none"},
         CELLS_FUNCTION: {"type": "volFieldValue", "libs": _FIELD_LIBS, "fields": [STATE_FIELD],
-                         "operation": "average", "regionType": "all", **every_iteration},
+                         "operation": "average", "regionType": "all", **state_every},
     }
     if cfg.inlet_patch is not None:  # a case without an inlet observes its cells alone
         functions[INLET_FUNCTION] = {
             "type": "surfaceFieldValue", "libs": _FIELD_LIBS, "fields": [STATE_FIELD], "operation": "average",
-            "regionType": "patch", "name": cfg.inlet_patch, "surfaceFormat": "none", **every_iteration}
+            "regionType": "patch", "name": cfg.inlet_patch, "surfaceFormat": "none", **state_every}
     boundaries = [k for k in pause_boundaries(cfg)[1:] if k > after]
     if pause and boundaries:  # at the solver's times: start_time + K
         copies = [[cfg.start_time + k, f'"$FOAM_CASE/system/{BRIDGE_DIR}/{_fv_solution_copy(case, k).name}"']

@@ -147,6 +147,8 @@ def test_missing_openfoam_is_a_one_line_error_saying_how_to_install(tmp_path: Pa
     ({"inlet_patch": ""}, "inlet_patch"), ({"relax_k_omega": 1.5}, "relax_k_omega"),
     ({"state_divergence_ratio": 0.0}, "state_divergence_ratio"),
     ({"state_divergence_ratio": float("inf")}, "state_divergence_ratio"),
+    ({"state_interval": 0}, "state_interval"), ({"interval": 25, "state_interval": 10}, "state_interval"),
+    ({"confirm_alpha_t": 0.8}, "confirm_alpha_t"),
 ])
 def test_bad_config_is_a_one_line_value_error_naming_the_field(overrides: dict, field: str) -> None:
     with pytest.raises(ValueError, match=f"FoamEnvConfig.{field}") as error:

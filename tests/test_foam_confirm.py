@@ -176,6 +176,7 @@ def test_a_controller_at_the_own_factors_converges_where_the_own_run_does(tmp_pa
     stepped = solve_case(case, tmp_path / "stepped", rule="own")
     settings = json.loads((tmp_path / "stepped" / "solve.json").read_text())["settings"]
     assert settings["confirm_alpha_u"] == 0.81 and settings["confirm_alpha_t"] == 0.77
+    assert settings["state_interval"] == 5  # a rule observes no state: only the divergence check reads it
     assert stepped.iterations == own.iterations
     strict = solve_case(case, tmp_path / "strict", rule="own", confirm_alpha_u=0.81)  # k checked at 0.81
     assert strict.iterations == 25 * math.ceil(own.iterations / 25) > own.iterations

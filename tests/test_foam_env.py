@@ -165,6 +165,32 @@ def test_divergence_is_deterministic_with_the_penalty_and_a_bounded_observation(
     assert sum(rewards) == -1000
 
 
+def test_the_state_every_five_iterations_leaves_the_run_and_still_catches_a_blow_up(tmp_path: Path) -> None:
+    """state_interval 5 (solve's, for a controller that does not observe the state): the same residual
+    history and the state printed at every fifth iteration only; a blow-up still ends the episode as
+    diverged, at most 4 iterations later than the state read every iteration would have."""
+    histories, printed = [], []
+    for every in (1, 5):
+        with FoamCaseEnv(_cfg(tmp_path / f"every-{every}", state_interval=every)) as env:
+            env.reset(options={"inlet_velocity": U_REF})
+            _, info = _run_episode(env, BEST)
+            histories.append(list(env.parser.history))
+            log = (env.case_dir / "log.simpleFoam").read_text()
+        printed.append(log.count(f"volFieldValue {episode_case.CELLS_FUNCTION} write:"))
+        assert info["outcome"] == "converged"
+    assert histories[0] == histories[1]
+    assert printed[0] == len(histories[0]) and printed[1] == len(histories[0]) // 5
+    ends = []
+    for every in (1, 5):
+        cfg = _cfg(tmp_path / f"blow-up-{every}", mesh_scale=0.25, interval=10, state_interval=every)
+        with FoamCaseEnv(cfg) as env:
+            env.reset(options={"inlet_velocity": U_REF})
+            _, info = _run_episode(env, BEST)
+        assert info["outcome"] == "diverged"
+        ends.append(info["iterations"])
+    assert 0 <= ends[1] - ends[0] <= 4
+
+
 def test_solver_crash_mid_run_is_recorded_and_the_next_episode_works(tmp_path: Path) -> None:
     env = FoamCaseEnv(_cfg(tmp_path, failure_penalty=-2000.0))
     try:

@@ -1,7 +1,8 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """What does a factor cost per SIMPLE iteration, with the machine's load taken out? A controlled check:
 one case run to its criterion by plain simpleFoam at fixed factors (its own, then each named factor
-raised by DELTA), the settings alternated round after round so that the load falls alike on each, and
+raised by DELTA; with --function-objects also the own factors with the bridge's state function
+objects), the settings alternated round after round so that the load falls alike on each, and
 for each setting the median solver CPU per iteration and linear-solver iterations per iteration.
 
     python experiments/controller/generated-v1-setup/price_check.py runs/generated-val/bump-2 \
@@ -39,13 +40,37 @@ def own_factor(fv_solution: Path, factor: str) -> float:
     return float(re.search(_ENTRY[factor], fv_solution.read_text()).group(2))
 
 
+#: The state function objects foam_bridge runs every iteration of a controlled run
+#: (foam_bridge._episode_case._function_objects), for ``--function-objects``.
+_BRIDGE_FUNCTIONS = """
+functions
+{
+    magSqrU { type magSqr; libs ("libfieldFunctionObjects.so"); field U; result magSqrU;
+        executeControl timeStep; executeInterval 1; writeControl none; }
+    cells { type volFieldValue; libs ("libfieldFunctionObjects.so"); fields (magSqrU); operation average;
+        regionType all; executeControl timeStep; executeInterval 1; writeControl timeStep; writeInterval 1;
+        log true; writeToFile false; writeFields false; }
+    inlet { type surfaceFieldValue; libs ("libfieldFunctionObjects.so"); fields (magSqrU);
+        operation average; regionType patch; name inlet; surfaceFormat none; executeControl timeStep;
+        executeInterval 1; writeControl timeStep; writeInterval 1; log true; writeToFile false;
+        writeFields false; }
+}
+"""
+#: A setting's key that adds _BRIDGE_FUNCTIONS instead of changing a factor.
+_FUNCTIONS = "functions"
+
+
 def run_once(case: Path, settings: dict[str, float], work: Path) -> dict:
     run_dir = work / "run"
     if run_dir.exists():
         shutil.rmtree(run_dir)
     shutil.copytree(case, run_dir, ignore=shutil.ignore_patterns("log.*", "processor*"))
     for factor, value in settings.items():
-        set_factor(run_dir / "system" / "fvSolution", factor, value)
+        if factor == _FUNCTIONS:
+            with (run_dir / "system" / "controlDict").open("a") as control:
+                control.write(_BRIDGE_FUNCTIONS)
+        else:
+            set_factor(run_dir / "system" / "fvSolution", factor, value)
     openfoam = find_openfoam()
     with (run_dir / "log.simpleFoam").open("w") as log:
         subprocess.run([openfoam.executable("simpleFoam"), "-case", str(run_dir)], stdout=log,
@@ -61,9 +86,11 @@ def run_once(case: Path, settings: dict[str, float], work: Path) -> dict:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("case", type=Path)
-    ap.add_argument("--raise", dest="raised", nargs="+", default=["turbulence"], choices=sorted(_ENTRY))
+    ap.add_argument("--raise", dest="raised", nargs="*", default=["turbulence"], choices=sorted(_ENTRY))
     ap.add_argument("--delta", type=float, default=0.1)
     ap.add_argument("--rounds", type=int, default=4)
+    ap.add_argument("--function-objects", action="store_true",
+                    help="also the own factors with the bridge's per-iteration state function objects")
     ap.add_argument("--out", type=Path)
     args = ap.parse_args()
     fv = args.case / "system" / "fvSolution"
@@ -71,6 +98,8 @@ def main() -> None:
     for factor in args.raised:
         value = min(own_factor(fv, factor) + args.delta, 1.0)
         settings[f"{factor} {value:.2f}"] = {factor: value}
+    if args.function_objects:
+        settings["own + function objects"] = {_FUNCTIONS: 1.0}
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for round_ in range(args.rounds):
