@@ -339,7 +339,7 @@ def _function_objects(cfg: FoamEnvConfig, case: Path, pause: bool, after: int = 
     in the copies of earlier pauses)."""
     every = cfg.state_interval
     state_every = {"executeControl": "timeStep", "executeInterval": every, "writeControl": "timeStep",
-                       "writeInterval": every, "log": True, "writeToFile": False, "writeFields": False}
+                   "writeInterval": every, "log": True, "writeToFile": False, "writeFields": False}
     functions: dict[str, Any] = {
         "foamBridgeMagSqrU": {"type": "magSqr", "libs": _FIELD_LIBS, "field": cfg.velocity_field,
                               "result": STATE_FIELD, "executeControl": "timeStep", "executeInterval": every,
