@@ -208,11 +208,12 @@ def _solve(case: Path, out: Path, policy: Any, compare: bool, constant: Sequence
                          f"--max-iterations N (or --from-time)")
     budget = max_iterations or settings.budget or DEFAULT_MAX_ITERATIONS
     # the check holds a controller's factors to the case's own normalisation: the case's own factors need none
-    confirm = (None if rule == DEFAULT_RULE else (check_factor(settings), turbulence_check(settings))
-               if confirm == OWN_CHECK else confirm)
+    own_check = confirm == OWN_CHECK and rule != DEFAULT_RULE
+    confirm = None if rule == DEFAULT_RULE else check_factor(settings) if own_check else confirm
     ranks, keep_decomposed = parallel_run
     cfg, checked = solve_config(case, trained, out / WORK_DIR, budget, confirm, *env, residual=residual,
-                                start_time=start, settings=settings)
+                                start_time=start, settings=settings,
+                                confirm_alpha_t=turbulence_check(settings) if own_check else None)
     cfg = dataclasses.replace(cfg, ranks=ranks, state_interval=state_interval(cfg, rule)).validate()
     if rule is not None:  # a rule goes back to the case's own factors: exactly them
         cfg = with_own(cfg, settings)

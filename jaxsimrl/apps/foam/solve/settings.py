@@ -170,11 +170,11 @@ def _budget(control: dict[str, Any]) -> int | None:
 
 
 def solve_config(case: Path, policy_cfg: FoamEnvConfig, work: Path, max_iterations: int,
-                 confirm_alpha_u: float | None | tuple[float, float | None],
-                 action_box: tuple[Sequence[float], Sequence[float]] | None,
+                 confirm_alpha_u: float | None, action_box: tuple[Sequence[float], Sequence[float]] | None,
                  step_timeout_s: float, inlet_patch: str | None = None,
                  residual: Residual | str | None = None, start_time: int = 0,
-                 settings: CaseSettings | None = None) -> tuple[FoamEnvConfig, CheckedCase]:
+                 settings: CaseSettings | None = None, confirm_alpha_t: float | None = None
+                 ) -> tuple[FoamEnvConfig, CheckedCase]:
     """The env config of the controlled run (see the module docstring) and the case as its check built
     it (``work/checked`` and its CaseInfo: the controlled run's env starts from it instead of building
     and dry-running the case again); one-line CaseError/ValueError if the bridge cannot drive the case.
@@ -188,9 +188,7 @@ def solve_config(case: Path, policy_cfg: FoamEnvConfig, work: Path, max_iteratio
     copy, mesh and dry run, foam_bridge._base_case.check_case), from this config before the case's own
     criterion, box and observed fields are applied, and none enters the build (the dry run relaxes with
     the case's own factors, or the box's lower corner, which is the built-in one for a case without own
-    factors). ``confirm_alpha_u``: the check's alpha_u, or (alpha_u, turbulence factor), see
-    FoamEnvConfig.confirm_alpha_t."""
-    confirm_u, confirm_t = confirm_alpha_u if isinstance(confirm_alpha_u, tuple) else (confirm_alpha_u, None)
+    factors). ``confirm_alpha_t``: the check's turbulence factor (FoamEnvConfig.confirm_alpha_t)."""
     copied = {name: getattr(policy_cfg, name) for name in POLICY_FIELDS if hasattr(policy_cfg, name)}
     if getattr(policy_cfg, "relax_k_omega", None) == TURBULENCE_ACTION:
         copied["relax_k_omega"] = TURBULENCE_ACTION
@@ -202,8 +200,9 @@ def solve_config(case: Path, policy_cfg: FoamEnvConfig, work: Path, max_iteratio
     interval = min(copied.get("interval", 100), max_iterations)
     inlet_patch = inlet_of(case, inlet_patch, find_openfoam(policy_cfg.openfoam_path))
     cfg = FoamEnvConfig(**{**copied, "interval": interval}, case_dir=case, max_iterations=max_iterations,
-                        confirm_alpha_u=confirm_u, confirm_alpha_t=confirm_t, work_dir=work, keep_cases=True,
-                        step_timeout_s=step_timeout_s, inlet_patch=inlet_patch, start_time=start_time)
+                        confirm_alpha_u=confirm_alpha_u, confirm_alpha_t=confirm_alpha_t, work_dir=work,
+                        keep_cases=True, step_timeout_s=step_timeout_s, inlet_patch=inlet_patch,
+                        start_time=start_time)
     explicit: list[str] = []
     if action_box is not None:
         cfg = dataclasses.replace(cfg, action_low=tuple(action_box[0]), action_high=tuple(action_box[1]))
