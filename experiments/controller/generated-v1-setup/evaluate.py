@@ -9,6 +9,8 @@ checkpoints and the seed were chosen on validation (validate.py); every case is 
         --policy runs/generated-v1-s0-pinned/uN [--policy ...] --out DIR
     .venv/bin/python experiments/controller/generated-v1-setup/evaluate.py runs/tutorials --tutorials ...
 
+``--cases`` splits a set between streams (one per core) that append to the same rows.jsonl.
+
 Per case, on its own mesh, criterion and budget:
 
 - ``learned``: ``jaxsimrl solve --policy P`` for each policy, each paired with an own run made just before
@@ -24,6 +26,7 @@ One JSON line per case in DIR/rows.jsonl, appended as each finishes; a rerun ski
 from __future__ import annotations
 
 import argparse
+import fcntl
 import importlib.util
 import json
 import sys
@@ -104,15 +107,18 @@ def main() -> None:
     SAFETY.add_case_set(parser)
     parser.add_argument("--policy", type=Path, action="append", required=True,
                         help="a pinned checkpoint's run directory (one per seed)")
+    parser.add_argument("--cases", dest="only", nargs="+",
+                        help="these cases only (two streams on two cores split the set this way)")
     parser.add_argument("--out", type=Path, required=True)
     args = parser.parse_args()
-    names = SAFETY.case_names(args)
+    names = args.only or SAFETY.case_names(args)
     args.out.mkdir(parents=True, exist_ok=True)
     path = args.out / "rows.jsonl"
     held = {json.loads(line)["case"] for line in path.read_text().splitlines()} if path.exists() else set()
     for name in (n for n in names if n not in held):
         row = evaluate(args.root / name, args.policy)
-        with path.open("a") as stream:
+        with path.open("a") as stream:  # whole lines: streams that share rows.jsonl take turns
+            fcntl.flock(stream, fcntl.LOCK_EX)
             stream.write(json.dumps(row) + "\n")
         print(f"{name}: " + ", ".join(f"learned {r['iterations_vs_own']:.2f}x its {r['cpu_vs_own']:.2f}x CPU"
                                       for r in row["learned"].values()), flush=True)
