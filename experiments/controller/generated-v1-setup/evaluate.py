@@ -9,7 +9,9 @@ checkpoints and the seed were chosen on validation (validate.py); every case is 
         --policy runs/generated-v1-s0-pinned/uN [--policy ...] --out DIR
     .venv/bin/python experiments/controller/generated-v1-setup/evaluate.py runs/tutorials --tutorials ...
 
-``--cases`` splits a set between streams (one per core) that append to the same rows.jsonl.
+``--cases`` splits a set between streams (one per core) that append to the same rows.jsonl;
+``--learned-only`` runs only the policies' pairs, into learned-rows.jsonl (a seed trained later, beside the
+baselines already measured).
 
 Per case, on its own mesh, criterion and budget:
 
@@ -82,17 +84,26 @@ def oracle(case: Path, scratch: Path, algorithm: str) -> dict[str, Any]:
             "grid_cpu_s": round(sum(run["cpu_s"] for run in runs.values()), 2), "grid": runs}
 
 
-def evaluate(case: Path, policies: list[Path]) -> dict[str, Any]:
+def learned(case: Path, scratch: Path, policies: list[Path]) -> dict[str, Any]:
+    """Each policy's solve, paired with an own run made just before it."""
+    runs = {}
+    for k, policy in enumerate(policies):
+        own = plain(case, scratch / f"own-{k}", None)
+        ours = solved(case, scratch / f"learned-{k}", policy=policy)
+        ratios = {"iterations_vs_own": round(ours["iterations"] / own["iterations"], 3),
+                  "cpu_vs_own": round(ours["cpu_s"] / own["cpu_s"], 3)}
+        runs[str(policy)] = {**ours, "own": own, **ratios}
+    return runs
+
+
+def evaluate(case: Path, policies: list[Path], learned_only: bool) -> dict[str, Any]:
     algorithm = read_case_settings(case).variant
     with tempfile.TemporaryDirectory(prefix=f"learned-{case.name}-") as scratch_dir:
         scratch = Path(scratch_dir)
-        row: dict[str, Any] = {"case": case.name, "algorithm": algorithm, "learned": {}}
-        for k, policy in enumerate(policies):
-            own = plain(case, scratch / f"own-{k}", None)
-            ours = solved(case, scratch / f"learned-{k}", policy=policy)
-            ratios = {"iterations_vs_own": round(ours["iterations"] / own["iterations"], 3),
-                      "cpu_vs_own": round(ours["cpu_s"] / own["cpu_s"], 3)}
-            row["learned"][str(policy)] = {**ours, "own": own, **ratios}
+        row: dict[str, Any] = {"case": case.name, "algorithm": algorithm,
+                               "learned": learned(case, scratch, policies)}
+        if learned_only:
+            return row
         for rule in RULES:
             own = plain(case, scratch / f"own-{rule}", None)
             row[rule] = {**solved(case, scratch / rule, rule=rule), "own": own}
@@ -109,14 +120,17 @@ def main() -> None:
                         help="a pinned checkpoint's run directory (one per seed)")
     parser.add_argument("--cases", dest="only", nargs="+",
                         help="these cases only (two streams on two cores split the set this way)")
+    parser.add_argument("--learned-only", action="store_true",
+                        help="only the policies' paired runs, into learned-rows.jsonl (a later seed beside "
+                             "baselines already measured; eval_table.py joins them)")
     parser.add_argument("--out", type=Path, required=True)
     args = parser.parse_args()
     names = args.only or SAFETY.case_names(args)
     args.out.mkdir(parents=True, exist_ok=True)
-    path = args.out / "rows.jsonl"
+    path = args.out / ("learned-rows.jsonl" if args.learned_only else "rows.jsonl")
     held = {json.loads(line)["case"] for line in path.read_text().splitlines()} if path.exists() else set()
     for name in (n for n in names if n not in held):
-        row = evaluate(args.root / name, args.policy)
+        row = evaluate(args.root / name, args.policy, args.learned_only)
         with path.open("a") as stream:  # whole lines: streams that share rows.jsonl take turns
             fcntl.flock(stream, fcntl.LOCK_EX)
             stream.write(json.dumps(row) + "\n")

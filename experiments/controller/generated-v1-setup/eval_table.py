@@ -1,0 +1,128 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Issue 47's table from evaluate.py's rows: every case, losses included, then the issue's targets.
+
+    python experiments/controller/generated-v1-setup/eval_table.py \\
+        experiments/controller/generated-v3-eval/heldout-v2 [--policy-names seed0 seed1] > .../table.md
+
+Each cell is iterations / own, solver CPU / own. A learned or rule run's CPU is over the own run made just
+before it (the machine's load moves both); the plain runs (the generated family's constant, the per-case
+oracle) are over the median of the case's own runs. Bold: over the issue's per-case bound (1.10x own
+iterations, or CPU over max(1.10x, own + 0.5 s)); "not conv." where a run missed the criterion.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+from pathlib import Path
+from typing import Any
+
+RULES = ("residual-rule", "bandit", "random")
+
+
+def own_runs(row: dict[str, Any]) -> list[dict[str, Any]]:
+    """Every own run of a case (one before each learned and each rule run)."""
+    return [run["own"] for run in (*row["learned"].values(), *(row[rule] for rule in RULES))]
+
+
+def ratios(run: dict[str, Any], own: dict[str, Any]) -> tuple[float, float]:
+    """(iterations / own, CPU / own). A run that missed the criterion the own run met counts as infinitely
+    dear; where the own run missed it too both ran to the case's budget, and an oracle grid none of whose
+    constants converged leaves the user with the own run."""
+    if not run.get("converged") and own["converged"]:
+        return float("inf"), float("inf")
+    if "iterations" not in run:
+        return 1.0, 1.0
+    return run["iterations"] / own["iterations"], run["cpu_s"] / own["cpu_s"]
+
+
+def versus(mine: float, theirs: float) -> float:
+    """One CPU ratio over another (both over their own runs); two runs that both missed tie."""
+    return 1.0 if mine == theirs == float("inf") else mine / theirs
+
+
+def over_bound(run: dict[str, Any], own: dict[str, Any]) -> bool:
+    its, cpu = ratios(run, own)
+    return its > 1.10 or (cpu > 1.10 and run["cpu_s"] > own["cpu_s"] + 0.5)
+
+
+def cell(run: dict[str, Any], own: dict[str, Any]) -> str:
+    if not run.get("converged") and own["converged"]:
+        return f"**not conv. ({run.get('iterations', 'grid')})**"
+    its, cpu = ratios(run, own)
+    text = f"{its:.2f} / {cpu:.2f}{'' if run.get('converged') else ' (not conv., as own)'}"
+    return f"**{text}**" if over_bound(run, own) else text
+
+
+def median_own(row: dict[str, Any]) -> dict[str, Any]:
+    runs = own_runs(row)
+    return {"converged": all(r["converged"] for r in runs), "iterations": runs[0]["iterations"],
+            "cpu_s": statistics.median(r["cpu_s"] for r in runs)}
+
+
+def columns(rows: list[dict[str, Any]], names: list[str]) -> list[tuple[str, Any]]:
+    """(heading, row -> (run, own)) for every column of the table."""
+    policies = list(rows[0]["learned"])
+    learned = [(f"learned {name}", lambda row, p=p: (row["learned"][p], row["learned"][p]["own"]))
+               for name, p in zip(names, policies, strict=True)]
+    rules = [(rule, lambda row, rule=rule: (row[rule], row[rule]["own"])) for rule in RULES]
+    plain = [("family constant", lambda row: (row["constant"], median_own(row))),
+             ("per-case oracle", lambda row: (row["oracle"], median_own(row)))]
+    return [*learned, *rules, *plain]
+
+
+def table(rows: list[dict[str, Any]], names: list[str]) -> str:
+    cols = columns(rows, names)
+    head = ["case", "algorithm", "own iterations", "own CPU s", *(name for name, _ in cols),
+            "oracle's factors (grid CPU s)"]
+    lines = ["| " + " | ".join(head) + " |", "|---" * len(head) + "|"]
+    for row in rows:
+        own = median_own(row)
+        oracle = row["oracle"]
+        lines.append("| " + " | ".join([
+            row["case"], row["algorithm"], f"{own['iterations']}{'' if own['converged'] else ' (not conv.)'}",
+            f"{own['cpu_s']:.1f}", *(cell(*pick(row)) for _, pick in cols),
+            f"{oracle.get('best') or '-'} ({oracle['grid_cpu_s']:.0f})"]) + " |")
+    medians = [statistics.median(ratios(*pick(row))[k] for row in rows) for _, pick in cols for k in (0, 1)]
+    lines.append("| **median** | | | | " + " | ".join(
+        f"{medians[2 * k]:.2f} / {medians[2 * k + 1]:.2f}" for k in range(len(cols))) + " | |")
+    losses = [sum(over_bound(*pick(row)) for row in rows) for _, pick in cols]
+    lines.append("| **cases over the bound** | | | | " + " | ".join(map(str, losses)) + " | |")
+    return "\n".join(lines)
+
+
+def targets(rows: list[dict[str, Any]], names: list[str]) -> str:
+    lines = ["| learned | median CPU / bandit's (<= 0.90) | median CPU / own (<= 0.85) | "
+             "cases over the per-case bound (0) |", "|---|---|---|---|"]
+    for name, policy in zip(names, rows[0]["learned"], strict=True):
+        runs = [(row["learned"][policy], row["learned"][policy]["own"], row) for row in rows]
+        bandit = [ratios(row["bandit"], row["bandit"]["own"])[1] for row in rows]
+        vs_bandit = statistics.median(versus(ratios(run, own)[1], theirs)
+                                      for (run, own, _), theirs in zip(runs, bandit, strict=True))
+        vs_own = statistics.median(ratios(run, own)[1] for run, own, _ in runs)
+        over = [row["case"] for run, own, row in runs if over_bound(run, own)]
+        lines.append(f"| {name} | {vs_bandit:.2f} | {vs_own:.2f} | {len(over)}{': ' if over else ''}"
+                     f"{', '.join(over)} |")
+    return "\n".join(lines)
+
+
+def read(path: Path) -> list[dict[str, Any]]:
+    return [json.loads(line) for line in path.read_text().splitlines() if line]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("directory", type=Path, help="evaluate.py's --out")
+    parser.add_argument("--policy-names", nargs="+", help="a short name per --policy, in order")
+    args = parser.parse_args()
+    rows = read(args.directory / "rows.jsonl")
+    later = args.directory / "learned-rows.jsonl"  # seeds evaluated after the baselines (--learned-only)
+    for extra in read(later) if later.exists() else []:
+        next(row for row in rows if row["case"] == extra["case"])["learned"].update(extra["learned"])
+    names = args.policy_names or [Path(p).name for p in rows[0]["learned"]]
+    print(table(rows, names) + "\n\n" + targets(rows, names))
+
+
+if __name__ == "__main__":
+    main()
