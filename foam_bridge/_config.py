@@ -441,6 +441,14 @@ class FoamEnvConfig:
         return self.relax_k_omega
 
     @property
+    def turbulence_check_factor(self) -> float | None:
+        """The factor the convergence check relaxes (and judges) the turbulence fields at when the agent
+        sets them: ``confirm_alpha_t`` where set and alpha_t is an action, else ``confirm_alpha_u``."""
+        if self.confirm_alpha_t is not None and self.k_omega_relaxation == K_OMEGA_ACTION:
+            return self.confirm_alpha_t
+        return self.confirm_alpha_u
+
+    @property
     def turbulence_formula(self) -> tuple[float, float] | None:
         """(intensity, nu_t/nu) for the inlet k/omega when the inlet speed is set; None: keep the case's."""
         if self.inlet_turbulence is None and self.builtin:

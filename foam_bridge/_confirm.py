@@ -110,18 +110,10 @@ def _checked_fields(cfg: FoamEnvConfig, turbulence: Sequence[str] | None = None,
     SIMPLE, p reads 5.7e-2 at alpha_u 0.9 from fields converged to 1e-6 at 0.7; on T3A, see above)."""
     if cfg.k_omega_relaxation not in (FOLLOW_ALPHA_U, K_OMEGA_ACTION):
         return (cfg.velocity_field,)
-    check = turbulence_check_factor(cfg)
+    check = cfg.turbulence_check_factor
     if step_factor is not None and check is not None and step_factor >= check - _FACTOR_TOLERANCE:
         return (cfg.velocity_field,)
     return (cfg.velocity_field, *(cfg.turbulence_fields if turbulence is None else turbulence))
-
-
-def turbulence_check_factor(cfg: FoamEnvConfig) -> float | None:
-    """The factor the check relaxes (and judges) the turbulence fields at when the agent sets them:
-    ``confirm_alpha_t`` where set and alpha_t is an action, else ``confirm_alpha_u``."""
-    if cfg.confirm_alpha_t is not None and cfg.k_omega_relaxation == K_OMEGA_ACTION:
-        return cfg.confirm_alpha_t
-    return cfg.confirm_alpha_u
 
 
 def confirm(episode: Path, base: Path, cfg: FoamEnvConfig, openfoam: OpenFOAM, iteration: int,
@@ -130,7 +122,7 @@ def confirm(episode: Path, base: Path, cfg: FoamEnvConfig, openfoam: OpenFOAM, i
     """Check the fields the episode case wrote at ``iteration`` at alpha_u = ``cfg.confirm_alpha_u``
     (``flat``: the case's relaxationFactors use the old flat layout; ``turbulence``: the fields alpha_t
     relaxes when it is an action, see case.relaxation_text). When alpha_t is an action they are relaxed
-    at :func:`turbulence_check_factor`, whatever the step's alpha_t was; otherwise at the env's fixed
+    at ``cfg.turbulence_check_factor``, whatever the step's alpha_t was; otherwise at the env's fixed
     factor.
     ``step_factor``: the step's own turbulence factor (:func:`step_turbulence_factor`), which decides
     whether they are checked (:func:`_checked_fields`)."""
@@ -139,7 +131,7 @@ def confirm(episode: Path, base: Path, cfg: FoamEnvConfig, openfoam: OpenFOAM, i
     scratch = episode.parent / CHECK_DIR
     # the third factor is read only with alpha_t an action (relaxation_text): the agent's own is not used
     fixed = cfg.confirm_alpha_u
-    text = episode_case.relaxation_text(cfg, fixed, alpha_p, flat, turbulence_check_factor(cfg), turbulence)
+    text = episode_case.relaxation_text(cfg, fixed, alpha_p, flat, cfg.turbulence_check_factor, turbulence)
     parser = LogParser(episode_case.CELLS_FUNCTION, episode_case.INLET_FUNCTION, cfg.divergence_threshold)
     error = ""
     try:

@@ -20,7 +20,7 @@ from foam_marks import needs_openfoam
 
 from foam_bridge import sample_specs, write_case
 from foam_bridge._config import FoamEnvConfig, without_convergence_test
-from foam_bridge._confirm import _checked_fields, meets, step_turbulence_factor, turbulence_check_factor
+from foam_bridge._confirm import _checked_fields, meets, step_turbulence_factor
 from foam_bridge._env import FoamCaseEnv
 from foam_bridge._logparse import LogParser, solver_cost
 from jaxsimrl.cli.main import main
@@ -147,13 +147,13 @@ def test_the_turbulence_fields_are_judged_at_their_own_check_factor():
     """confirm_alpha_t (solve: the case's own turbulence factor) replaces confirm_alpha_u for k/epsilon/
     omega when alpha_t is an action: a step at or above it is not re-read, one below it is."""
     cfg = FoamEnvConfig(relax_k_omega="action", confirm_alpha_u=0.81, confirm_alpha_t=0.77)
-    assert turbulence_check_factor(cfg) == 0.77
+    assert cfg.turbulence_check_factor == 0.77
     for alpha_t, checked in ((0.77, ("U",)), (0.8, ("U",)), (0.76, ("U", "k", "omega"))):
         assert _checked_fields(cfg, None, step_turbulence_factor(cfg, (0.81, 1.0, alpha_t))) == checked
     follow = dataclasses.replace(cfg, relax_k_omega="alpha_u")  # alpha_u's factor, alpha_u's check
-    assert turbulence_check_factor(follow) == 0.81
+    assert follow.turbulence_check_factor == 0.81
     assert _checked_fields(follow, None, step_turbulence_factor(follow, (0.8, 1.0))) == ("U", "k", "omega")
-    assert turbulence_check_factor(dataclasses.replace(cfg, confirm_alpha_t=None)) == 0.81
+    assert dataclasses.replace(cfg, confirm_alpha_t=None).turbulence_check_factor == 0.81
 
 
 @pytest.mark.slow  # three real runs of a generated case

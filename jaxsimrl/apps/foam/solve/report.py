@@ -144,7 +144,7 @@ def build_report(case: Path, out: Path, controller: Any, cfg: Any, run: Any, res
             "cores": os.cpu_count(), "controller": controller.provenance,
             "settings": {"criterion": dict(cfg.convergence), "confirm_alpha_u": cfg.confirm_alpha_u,
                          # the turbulence fields' check factor, where the controller sets alpha_t
-                         "confirm_alpha_t": (cfg.confirm_alpha_t or cfg.confirm_alpha_u
+                         "confirm_alpha_t": (cfg.turbulence_check_factor
                                              if cfg.relax_k_omega == K_OMEGA_ACTION else None),
                          "action_low": list(cfg.action_low), "action_high": list(cfg.action_high),
                          "action_pivot": None if cfg.action_pivot is None else list(cfg.action_pivot),
