@@ -490,6 +490,25 @@ def test_a_stalling_controller_hands_the_live_run_to_the_case_own_factors(tmp_pa
     assert data["result"]["fields_from"].startswith("the controller, then the case's own factors")
 
 
+class _ConstantEvery25(_Constant):
+    """The stalling controller, stepping every 25 iterations as issue 47's recurrent policy does."""
+
+    env_params = FoamEnvConfig(interval=25)
+
+
+@pytest.mark.slow  # a whole solve
+def test_a_learned_controller_s_stall_window_is_300_iterations_whatever_its_step(tmp_path: Path) -> None:
+    """The stall window is calibrated on steps of 100 iterations; counted in the controller's own steps of
+    25 it was 75 iterations and handed runs back on plateaus the own run passes through."""
+    case = _coarse_step(tmp_path / "step")
+    out = tmp_path / "out"
+    solve_case(case, out, policy=Controller(_ConstantEvery25(0.2, 0.2), {}), step_timeout_s=120)
+    data = json.loads((out / "solve.json").read_text())
+    (event,) = data["fallback"]
+    assert event["kind"] == "watchdog" and "stalled" in event["reason"] and "12 steps" in event["reason"]
+    assert event["at_iteration"] >= 300 and data["settings"]["interval"] == 25
+
+
 @pytest.mark.slow  # a whole solve
 def test_a_plain_simple_case_runs_with_its_own_settings(tmp_path: Path) -> None:
     case = _coarse_step(tmp_path / "step")  # the shipped controller learned SIMPLEC factors

@@ -38,7 +38,6 @@ and OpenFOAM's pitzDaily, pitzDailyExptInlet, airFoil2D, backwardFacingStep2D an
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import random
 from collections.abc import Mapping, Sequence
@@ -46,7 +45,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from foam_bridge import K_OMEGA_ACTION, FoamEnvConfig
-from jaxsimrl.apps.foam.solve.watchdog import Watchdog, WatchdogSettings
+from jaxsimrl.apps.foam.solve.watchdog import Watchdog, WatchdogSettings, for_interval
 
 __all__ = ["DEFAULT_RULE", "INTERVALS", "RULES", "Bandit", "GuardedRise", "OwnFactors", "RandomFactors",
            "ResidualRule", "RulePolicy"]
@@ -327,11 +326,10 @@ class RulePolicy:
                 "about": "no training: jaxsimrl.apps.foam.solve.rules"}
 
     def watchdog(self, settings: WatchdogSettings) -> WatchdogSettings:
-        """The watchdog's stall window kept in iterations: it counts steps, calibrated on steps of 100
-        iterations, and a rule's steps are shorter (3 steps of 50 would call pitzDaily's early plateau a
-        stall)."""
-        steps = math.ceil(settings.stall_steps * 100 / INTERVALS[self.name])
-        return dataclasses.replace(settings, stall_steps=steps)
+        """The watchdog's stall window kept in iterations (watchdog.for_interval): a rule's steps are
+        shorter than the 100 iterations it is calibrated on (3 steps of 50 would call pitzDaily's early
+        plateau a stall)."""
+        return for_interval(settings, INTERVALS[self.name])
 
     def for_case(self, criterion: Mapping[str, float], own: Sequence[float], low: Sequence[float],
                  high: Sequence[float], simplec: bool) -> _Rule:

@@ -67,7 +67,7 @@ from jaxsimrl.apps.foam.solve.settings import (
     with_own,
 )
 from jaxsimrl.apps.foam.solve.solvers import make_lean
-from jaxsimrl.apps.foam.solve.watchdog import WatchdogSettings
+from jaxsimrl.apps.foam.solve.watchdog import WatchdogSettings, for_interval
 from jaxsimrl.runs.signals import stop_word
 
 WORK_DIR = ".solve-work"
@@ -307,7 +307,7 @@ def _controlled(cfg: Any, trained: Any, settings: Any, controller: Any, watchdog
         return LearnedActor(loaded.policy, observation_factor(trained, speed),
                             getattr(trained, "freeze_decades", None), cfg.convergence)
 
-    return drive(cfg, actor, fallback, watchdog, say, checked, on_step)
+    return drive(cfg, actor, fallback, for_interval(watchdog, cfg.interval), say, checked, on_step)
 
 
 def rule_controller(name: str) -> Controller:
