@@ -4,6 +4,8 @@
     python experiments/controller/generated-v1-setup/eval_table.py \\
         experiments/controller/generated-v3-eval/heldout-v2 [--policy-names seed0 seed1] > .../table.md
 
+``--learned FILE``: learned runs made later (evaluate.py --learned-only) beside the same baselines.
+
 Each cell is iterations / own, solver CPU / own. A learned or rule run's CPU is over the own run made just
 before it (the machine's load moves both); the plain runs (the generated family's constant, the per-case
 oracle) are over the median of the case's own runs. Bold: over the issue's per-case bound (1.10x own
@@ -115,9 +117,11 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("directory", type=Path, help="evaluate.py's --out")
     parser.add_argument("--policy-names", nargs="+", help="a short name per --policy, in order")
+    parser.add_argument("--learned", type=Path, help="evaluate.py --learned-only's rows, replacing or adding "
+                        "learned columns (default DIRECTORY/learned-rows.jsonl where it exists)")
     args = parser.parse_args()
     rows = read(args.directory / "rows.jsonl")
-    later = args.directory / "learned-rows.jsonl"  # seeds evaluated after the baselines (--learned-only)
+    later = args.learned or args.directory / "learned-rows.jsonl"  # seeds (or runs) evaluated later
     for extra in read(later) if later.exists() else []:
         next(row for row in rows if row["case"] == extra["case"])["learned"].update(extra["learned"])
     names = args.policy_names or [Path(p).name for p in rows[0]["learned"]]
