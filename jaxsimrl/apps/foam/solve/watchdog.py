@@ -21,7 +21,7 @@ lines of defence, cheapest first:
 Why residuals and not the observation: the residuals are what convergence is measured in on *any* case,
 while the policy's observation is scaled for its training family; a rule on them needs no model of the
 case. The thresholds are deliberately loose (a decade of growth, 0.1 decade of progress in 300 iterations
-at the default interval): healthy runs of the training family gain ~1 decade per 100-200 iterations.
+at any interval, see for_interval): healthy runs of the training family gain ~1 decade per 100-200 iterations.
 """
 
 from __future__ import annotations
