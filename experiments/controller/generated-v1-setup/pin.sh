@@ -12,6 +12,7 @@ while :; do
     for ckpt in "$RUN"/checkpoints/[0-9]*; do
         [ -d "$ckpt" ] || continue
         update=$(basename "$ckpt")
+        case $update in *[!0-9]*) continue ;; esac  # orbax's N.orbax-checkpoint-tmp while it writes
         dest="$PIN/u$update"
         [ $((update % EVERY)) -eq 0 ] || continue
         [ -d "$dest" ] && continue
