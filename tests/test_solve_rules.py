@@ -31,7 +31,7 @@ from jaxsimrl.apps.foam.solve.rules import (
     RulePolicy,
 )
 from jaxsimrl.apps.foam.solve.settings import CaseSettings, check_factor, own_action, with_own
-from jaxsimrl.apps.foam.solve.watchdog import WatchdogSettings
+from jaxsimrl.apps.foam.solve.watchdog import WatchdogSettings, for_interval
 
 CRITERION = {"U": 1e-3, "p": 1e-2}
 OWN, LOW, HIGH = (0.7, 0.3, 0.7), (0.35, 0.15, 0.35), (0.875, 0.375, 0.875)
@@ -142,8 +142,10 @@ def test_a_rule_is_named_and_keeps_the_watchdog_stall_window_in_iterations():
         RulePolicy("nope")
     rule, bandit = RulePolicy("residual-rule"), RulePolicy("bandit")
     assert rule.env_params.interval == 50 and rule.env_params.relax_k_omega == "action"
-    assert rule.watchdog(WatchdogSettings()).stall_steps == 6  # 3 steps of 100 = 6 of 50
-    assert bandit.env_params.interval == 25 and bandit.watchdog(WatchdogSettings()).stall_steps == 12
+    # solve keeps the watchdog's stall window in iterations for every controller (watchdog.for_interval)
+    assert for_interval(WatchdogSettings(), rule.env_params.interval).stall_steps == 6  # 3 of 100 = 6 of 50
+    assert bandit.env_params.interval == 25
+    assert for_interval(WatchdogSettings(), bandit.env_params.interval).stall_steps == 12
     assert bandit.provenance()["arms"] == 3 and "raise_share" in rule.provenance()
 
 

@@ -45,7 +45,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from foam_bridge import K_OMEGA_ACTION, FoamEnvConfig
-from jaxsimrl.apps.foam.solve.watchdog import Watchdog, WatchdogSettings, for_interval
+from jaxsimrl.apps.foam.solve.watchdog import Watchdog
 
 __all__ = ["DEFAULT_RULE", "INTERVALS", "RULES", "Bandit", "GuardedRise", "OwnFactors", "RandomFactors",
            "ResidualRule", "RulePolicy"]
@@ -324,12 +324,6 @@ class RulePolicy:
                                       "hover_steps": HOVER_STEPS}}[self.name])
         return {"rule": self.name, "interval": INTERVALS[self.name], **constants,
                 "about": "no training: jaxsimrl.apps.foam.solve.rules"}
-
-    def watchdog(self, settings: WatchdogSettings) -> WatchdogSettings:
-        """The watchdog's stall window kept in iterations (watchdog.for_interval): a rule's steps are
-        shorter than the 100 iterations it is calibrated on (3 steps of 50 would call pitzDaily's early
-        plateau a stall)."""
-        return for_interval(settings, INTERVALS[self.name])
 
     def for_case(self, criterion: Mapping[str, float], own: Sequence[float], low: Sequence[float],
                  high: Sequence[float], simplec: bool) -> _Rule:

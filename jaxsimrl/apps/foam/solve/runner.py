@@ -289,11 +289,12 @@ def _controlled(cfg: Any, trained: Any, settings: Any, controller: Any, watchdog
                  "then": "the case's own run"}
         return ControlledRun(outcome="not run", events=[event])
     fallback = own_action(settings, cfg, len(cfg.action_low))
+    watchdog = for_interval(watchdog, cfg.interval)  # its stall window in iterations, whoever steps
     rule = controller.policy if isinstance(controller, Controller) else None
     if isinstance(rule, RulePolicy):  # a rule reads residuals only: it applies to any case
         made = rule.for_case(dict(cfg.convergence), fallback, cfg.action_low, cfg.action_high,
                              settings.variant == "SIMPLEC")
-        return drive(cfg, lambda speed: made, fallback, rule.watchdog(watchdog), say, checked, on_step)
+        return drive(cfg, lambda speed: made, fallback, watchdog, say, checked, on_step)
     skip = not_applicable(trained, settings, checked.info.solved_fields, cfg.inlet_patch)
     if skip is not None:
         say(skip)
@@ -307,7 +308,7 @@ def _controlled(cfg: Any, trained: Any, settings: Any, controller: Any, watchdog
         return LearnedActor(loaded.policy, observation_factor(trained, speed),
                             getattr(trained, "freeze_decades", None), cfg.convergence)
 
-    return drive(cfg, actor, fallback, for_interval(watchdog, cfg.interval), say, checked, on_step)
+    return drive(cfg, actor, fallback, watchdog, say, checked, on_step)
 
 
 def rule_controller(name: str) -> Controller:
