@@ -4,7 +4,8 @@
     python experiments/controller/generated-v1-setup/eval_table.py \\
         experiments/controller/generated-v3-eval/heldout-v2 [--policy-names seed0 seed1] > .../table.md
 
-``--learned FILE``: learned runs made later (evaluate.py --learned-only) beside the same baselines.
+``--learned FILE ...``: learned runs made later (evaluate.py --learned-only) beside the same baselines; a
+policy already in the rows is replaced, a new one added. Under the targets, the seeds' spread.
 
 Each cell is iterations / own, solver CPU / own. A learned or rule run's CPU is over the own run made just
 before it (the machine's load moves both); the plain runs (the generated family's constant, the per-case
@@ -97,6 +98,7 @@ def table(rows: list[dict[str, Any]], names: list[str]) -> str:
 def targets(rows: list[dict[str, Any]], names: list[str]) -> str:
     lines = ["| learned | median CPU / bandit's (<= 0.90) | median CPU / own (<= 0.85) | "
              "cases over the per-case bound (0) |", "|---|---|---|---|"]
+    spread = []
     for name, policy in zip(names, rows[0]["learned"], strict=True):
         runs = [(row["learned"][policy], row["learned"][policy]["own"], row) for row in rows]
         bandit = [ratios(row["bandit"], row["bandit"]["own"])[1] for row in rows]
@@ -106,6 +108,11 @@ def targets(rows: list[dict[str, Any]], names: list[str]) -> str:
         over = [row["case"] for run, own, row in runs if over_bound(run, own)]
         lines.append(f"| {name} | {vs_bandit:.2f} | {vs_own:.2f} | {len(over)}{': ' if over else ''}"
                      f"{', '.join(over)} |")
+        spread.append((vs_bandit, vs_own, len(over)))
+    if len(spread) > 1:
+        low, high = (tuple(map(f, zip(*spread, strict=True))) for f in (min, max))
+        lines.append(f"| spread over the {len(spread)} policies (min-max) | {low[0]:.2f}-{high[0]:.2f} | "
+                     f"{low[1]:.2f}-{high[1]:.2f} | {low[2]}-{high[2]} |")
     return "\n".join(lines)
 
 
@@ -117,12 +124,13 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("directory", type=Path, help="evaluate.py's --out")
     parser.add_argument("--policy-names", nargs="+", help="a short name per --policy, in order")
-    parser.add_argument("--learned", type=Path, help="evaluate.py --learned-only's rows, replacing or adding "
-                        "learned columns (default DIRECTORY/learned-rows.jsonl where it exists)")
+    parser.add_argument("--learned", type=Path, nargs="+", help="evaluate.py --learned-only's rows, "
+                        "replacing or adding learned columns (default DIRECTORY/learned-rows.jsonl where it "
+                        "exists)")
     args = parser.parse_args()
     rows = read(args.directory / "rows.jsonl")
-    later = args.learned or args.directory / "learned-rows.jsonl"  # seeds (or runs) evaluated later
-    for extra in read(later) if later.exists() else []:
+    later = args.learned or [args.directory / "learned-rows.jsonl"]  # seeds (or runs) evaluated later
+    for extra in (extra for path in later if path.exists() for extra in read(path)):
         next(row for row in rows if row["case"] == extra["case"])["learned"].update(extra["learned"])
     names = args.policy_names or [Path(p).name for p in rows[0]["learned"]]
     print(table(rows, names) + "\n\n" + targets(rows, names))

@@ -60,12 +60,14 @@ def baselines(cases: list[Path], path: Path, scratch: Path) -> dict[str, dict[st
     return known
 
 
-def validate(run: Path, update: int, cases: list[Path], base: dict, scratch: Path) -> dict:
+def validate(run: Path, update: int, cases: list[Path], base: dict, scratch: Path,
+             kept: dict | None = None) -> dict:
     """One checkpoint on every validation case. CPU seconds move with the machine's load, so each learned
     solve is paired with an own run made just before it: its CPU ratio to own is within the pair, and its
-    ratio to the bandit is that over the bandit's own ratio within its pair (the baselines')."""
+    ratio to the bandit is that over the bandit's own ratio within its pair (the baselines'). ``kept``:
+    rows of an earlier validation of this checkpoint to keep for the cases not in ``cases``."""
     policy = load_policy(run, update)
-    rows = {}
+    rows = dict(kept or {})
     for case in cases:
         paired = run_own(case, scratch / f"u{update}-own-{case.name}", "own", 3600.0)
         row = solved(case, scratch / f"u{update}-{case.name}", policy=policy)
@@ -90,9 +92,16 @@ def main() -> None:
     parser.add_argument("--baselines", type=Path,
                         default=Path(__file__).with_name("validation-baselines.jsonl"))
     parser.add_argument("--updates", type=int, nargs="*", help="checkpoints to validate (default: every one)")
+    parser.add_argument("--rerun", nargs="+", metavar="CASE",
+                        help="run only these cases again; the other cases' rows come from --earlier (solve's "
+                             "watchdog stall window grew from 3 to 12 steps at interval 25: a run it never "
+                             "handed back is the same run, so only the handed-back cases need running)")
+    parser.add_argument("--earlier", type=Path, help="the validation file --rerun takes the other rows from")
     args = parser.parse_args()
     cases = sorted(p for p in args.cases.iterdir()
                    if not p.name.startswith(".") and (p / "system" / "controlDict").is_file())
+    earlier = {json.loads(line)["update"]: json.loads(line)["cases"]
+               for line in (args.earlier.read_text().splitlines() if args.earlier else [])}
     done = {json.loads(line)["update"] for line in (args.out.read_text().splitlines() if args.out.exists()
                                                      else [])}
     steps = [] if str(args.run) == "-" else args.updates or Checkpoints(args.run / "checkpoints",
@@ -100,7 +109,12 @@ def main() -> None:
     with tempfile.TemporaryDirectory(prefix="generated-validate-") as scratch:
         base = baselines(cases, args.baselines, Path(scratch))
         for update in (u for u in steps if u not in done):
-            line = validate(args.run, update, cases, base, Path(scratch))
+            rerun = set(args.rerun or ())
+            kept = {name: row for name, row in earlier.get(update, {}).items() if name not in rerun}
+            line = validate(args.run, update, [c for c in cases if not kept or c.name in rerun], base,
+                            Path(scratch), kept)
+            if kept:
+                line["rerun"] = sorted(rerun)
             with args.out.open("a") as handle:
                 handle.write(json.dumps(line) + "\n")
             median = line["median"]
