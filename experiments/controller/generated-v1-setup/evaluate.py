@@ -11,7 +11,8 @@ checkpoints and the seed were chosen on validation (validate.py); every case is 
 
 ``--cases`` splits a set between streams (one per core) that append to the same rows.jsonl;
 ``--learned-only`` runs only the policies' pairs, into learned-rows.jsonl (a seed trained later, beside the
-baselines already measured).
+baselines already measured); with no ``--policy`` only the baselines run (while the policies are still being
+chosen: nothing in them depends on a policy).
 
 Per case, on its own mesh, criterion and budget:
 
@@ -116,8 +117,8 @@ def evaluate(case: Path, policies: list[Path], learned_only: bool) -> dict[str, 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     SAFETY.add_case_set(parser)
-    parser.add_argument("--policy", type=Path, action="append", required=True,
-                        help="a pinned checkpoint's run directory (one per seed)")
+    parser.add_argument("--policy", type=Path, action="append", default=[],
+                        help="a pinned checkpoint's run directory (one per seed; none: the baselines only)")
     parser.add_argument("--cases", dest="only", nargs="+",
                         help="these cases only (two streams on two cores split the set this way)")
     parser.add_argument("--learned-only", action="store_true",
@@ -125,6 +126,8 @@ def main() -> None:
                              "baselines already measured; eval_table.py joins them)")
     parser.add_argument("--out", type=Path, required=True)
     args = parser.parse_args()
+    if args.learned_only and not args.policy:
+        parser.error("--learned-only needs a --policy")
     names = args.only or SAFETY.case_names(args)
     args.out.mkdir(parents=True, exist_ok=True)
     path = args.out / ("learned-rows.jsonl" if args.learned_only else "rows.jsonl")
@@ -134,8 +137,8 @@ def main() -> None:
         with path.open("a") as stream:  # whole lines: streams that share rows.jsonl take turns
             fcntl.flock(stream, fcntl.LOCK_EX)
             stream.write(json.dumps(row) + "\n")
-        print(f"{name}: " + ", ".join(f"learned {r['iterations_vs_own']:.2f}x its {r['cpu_vs_own']:.2f}x CPU"
-                                      for r in row["learned"].values()), flush=True)
+        print(f"{name}: " + (", ".join(f"learned {r['iterations_vs_own']:.2f}x its {r['cpu_vs_own']:.2f}x CPU"
+                                       for r in row["learned"].values()) or "baselines done"), flush=True)
     sys.exit(0)
 
 
