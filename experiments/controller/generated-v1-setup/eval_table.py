@@ -9,8 +9,8 @@ policy already in the rows is replaced, a new one added. Under the targets, the 
 
 Each cell is iterations / own, solver CPU / own. A learned or rule run's CPU is over the own run made just
 before it (the machine's load moves both); the plain runs (the generated family's constant, the per-case
-oracle) are over the median of the case's own runs. Bold: over the issue's per-case bound (1.10x own
-iterations, or CPU over max(1.10x, own + 0.5 s)); "not conv." where a run missed the criterion.
+oracle) are over the median of the case's own runs in rows.jsonl. Bold: over the issue's per-case bound
+(1.10x own iterations, or CPU over max(1.10x, own + 0.5 s)); "not conv." where a run missed the criterion.
 """
 
 from __future__ import annotations
@@ -25,7 +25,8 @@ RULES = ("residual-rule", "bandit", "random")
 
 
 def own_runs(row: dict[str, Any]) -> list[dict[str, Any]]:
-    """Every own run of a case (one before each learned and each rule run)."""
+    """Every own run of a case in rows.jsonl (one before each learned and each rule run), not those of
+    learned runs that --learned joins later (another sitting's load; the plain runs' own must not move)."""
     return [run["own"] for run in (*row["learned"].values(), *(row[rule] for rule in RULES))]
 
 
@@ -59,7 +60,7 @@ def cell(run: dict[str, Any], own: dict[str, Any]) -> str:
 
 
 def median_own(row: dict[str, Any]) -> dict[str, Any]:
-    runs = own_runs(row)
+    runs = row["own_runs"]
     return {"converged": all(r["converged"] for r in runs), "iterations": runs[0]["iterations"],
             "cpu_s": statistics.median(r["cpu_s"] for r in runs)}
 
@@ -128,7 +129,7 @@ def main() -> None:
                         "replacing or adding learned columns (default DIRECTORY/learned-rows.jsonl where it "
                         "exists)")
     args = parser.parse_args()
-    rows = read(args.directory / "rows.jsonl")
+    rows = [{**row, "own_runs": own_runs(row)} for row in read(args.directory / "rows.jsonl")]
     later = args.learned or [args.directory / "learned-rows.jsonl"]  # seeds (or runs) evaluated later
     for extra in (extra for path in later if path.exists() for extra in read(path)):
         next(row for row in rows if row["case"] == extra["case"])["learned"].update(extra["learned"])

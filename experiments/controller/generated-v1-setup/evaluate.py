@@ -9,7 +9,9 @@ checkpoints and the seed were chosen on validation (validate.py); every case is 
         --policy runs/generated-v1-s0-pinned/uN [--policy ...] --out DIR
     .venv/bin/python experiments/controller/generated-v1-setup/evaluate.py runs/tutorials --tutorials ...
 
-``--cases`` splits a set between streams (one per core) that append to the same rows.jsonl;
+Streams started on the same set (one per core) share its cases out one by one (DIR/rows.claims; a stream
+killed mid-case leaves its claim: delete the file to rerun what is missing); ``--cases`` restricts a
+stream to some cases;
 ``--learned-only`` runs only the policies' pairs, into learned-rows.jsonl (a seed trained later, beside the
 baselines already measured); with no ``--policy`` only the baselines run (while the policies are still being
 chosen: nothing in them depends on a policy).
@@ -114,6 +116,22 @@ def evaluate(case: Path, policies: list[Path], learned_only: bool) -> dict[str, 
     return row
 
 
+def claim(path: Path, names: list[str]) -> str | None:
+    """The first of ``names`` neither in ``path`` nor claimed by another stream, claimed now (in
+    PATH.claims, under a lock): streams started on the same list share it out case by case."""
+    claims = path.with_suffix(".claims")
+    with claims.open("a+") as handle:
+        fcntl.flock(handle, fcntl.LOCK_EX)
+        handle.seek(0)
+        taken = set(handle.read().split())
+        if path.exists():
+            taken |= {json.loads(line)["case"] for line in path.read_text().splitlines()}
+        name = next((n for n in names if n not in taken), None)
+        if name is not None:
+            handle.write(name + "\n")
+    return name
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     SAFETY.add_case_set(parser)
@@ -131,8 +149,7 @@ def main() -> None:
     names = args.only or SAFETY.case_names(args)
     args.out.mkdir(parents=True, exist_ok=True)
     path = args.out / ("learned-rows.jsonl" if args.learned_only else "rows.jsonl")
-    held = {json.loads(line)["case"] for line in path.read_text().splitlines()} if path.exists() else set()
-    for name in (n for n in names if n not in held):
+    while (name := claim(path, names)) is not None:
         row = evaluate(args.root / name, args.policy, args.learned_only)
         with path.open("a") as stream:  # whole lines: streams that share rows.jsonl take turns
             fcntl.flock(stream, fcntl.LOCK_EX)
