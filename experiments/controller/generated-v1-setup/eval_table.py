@@ -117,6 +117,40 @@ def targets(rows: list[dict[str, Any]], names: list[str]) -> str:
     return "\n".join(lines)
 
 
+#: Where a run that missed the criterion the own run met is drawn (CPU / own), as a cross.
+MISSED_AT = 4.0
+
+
+def figure(rows: list[dict[str, Any]], names: list[str], path: Path) -> None:
+    """Solver CPU / own per case (a row each) and controller (a colour each), log scale; crosses at the right
+    edge: runs that missed the criterion. The issue's bound (1.10x) and its median target (0.85x) dashed."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    cols = columns(rows, names)
+    fig, ax = plt.subplots(figsize=(9, 0.45 * len(rows) + 1.5))
+    for k, (name, pick) in enumerate(cols):
+        cpu = [min(ratios(*pick(row))[1], MISSED_AT) for row in rows]
+        y = [j + (k - (len(cols) - 1) / 2) * 0.08 for j in range(len(rows))]
+        missed = [c >= MISSED_AT for c in cpu]
+        ax.scatter([c for c, m in zip(cpu, missed, strict=True) if not m],
+                   [v for v, m in zip(y, missed, strict=True) if not m], color=f"C{k}", s=18, label=name)
+        ax.scatter([MISSED_AT] * sum(missed), [v for v, m in zip(y, missed, strict=True) if m], color=f"C{k}",
+                   marker="x")
+    for x, style in ((1.0, "-"), (1.10, "--"), (0.85, ":")):
+        ax.axvline(x, color="k", lw=0.8, ls=style)
+    ax.set_xscale("log")
+    ax.set_yticks(range(len(rows)), [row["case"] for row in rows])
+    ax.invert_yaxis()
+    ax.set_xlabel(f"solver CPU / the case's own (x at {MISSED_AT:g}: missed the criterion)")
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=4)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
 def read(path: Path) -> list[dict[str, Any]]:
     return [json.loads(line) for line in path.read_text().splitlines() if line]
 
@@ -128,6 +162,7 @@ def main() -> None:
     parser.add_argument("--learned", type=Path, nargs="+", help="evaluate.py --learned-only's rows, "
                         "replacing or adding learned columns (default DIRECTORY/learned-rows.jsonl where it "
                         "exists)")
+    parser.add_argument("--figure", type=Path, help="also draw the CPU ratios here (a PNG)")
     args = parser.parse_args()
     rows = [{**row, "own_runs": own_runs(row)} for row in read(args.directory / "rows.jsonl")]
     later = args.learned or [args.directory / "learned-rows.jsonl"]  # seeds (or runs) evaluated later
@@ -135,6 +170,8 @@ def main() -> None:
         next(row for row in rows if row["case"] == extra["case"])["learned"].update(extra["learned"])
     names = args.policy_names or [Path(p).name for p in rows[0]["learned"]]
     print(table(rows, names) + "\n\n" + targets(rows, names))
+    if args.figure:
+        figure(rows, names, args.figure)
 
 
 if __name__ == "__main__":
