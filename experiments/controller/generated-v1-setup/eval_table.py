@@ -25,8 +25,9 @@ RULES = ("residual-rule", "bandit", "random")
 
 
 def own_runs(row: dict[str, Any]) -> list[dict[str, Any]]:
-    """Every own run of a case in rows.jsonl (one before each learned and each rule run), not those of
-    learned runs that --learned joins later (another sitting's load; the plain runs' own must not move)."""
+    """Every own run of a case's row (one before each learned and each rule run). main takes them from
+    rows.jsonl before --learned joins later runs (another sitting's load: the plain runs' own must not
+    move)."""
     return [run["own"] for run in (*row["learned"].values(), *(row[rule] for rule in RULES))]
 
 

@@ -138,7 +138,7 @@ def main() -> None:
     parser.add_argument("--policy", type=Path, action="append", default=[],
                         help="a pinned checkpoint's run directory (one per seed; none: the baselines only)")
     parser.add_argument("--cases", dest="only", nargs="+",
-                        help="these cases only (two streams on two cores split the set this way)")
+                        help="these cases only (streams on one set share its cases without it)")
     parser.add_argument("--learned-only", action="store_true",
                         help="only the policies' paired runs, into learned-rows.jsonl (a later seed beside "
                              "baselines already measured; eval_table.py joins them)")

@@ -108,8 +108,8 @@ def main() -> None:
                                                                           writable=False).steps()
     with tempfile.TemporaryDirectory(prefix="generated-validate-") as scratch:
         base = baselines(cases, args.baselines, Path(scratch))
+        rerun = set(args.rerun or ())
         for update in (u for u in steps if u not in done):
-            rerun = set(args.rerun or ())
             kept = {name: row for name, row in earlier.get(update, {}).items() if name not in rerun}
             line = validate(args.run, update, [c for c in cases if not kept or c.name in rerun], base,
                             Path(scratch), kept)
