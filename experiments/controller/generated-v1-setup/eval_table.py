@@ -118,7 +118,8 @@ def targets(rows: list[dict[str, Any]], names: list[str]) -> str:
     return "\n".join(lines)
 
 
-#: Where a run that missed the criterion the own run met is drawn (CPU / own), as a cross.
+#: Where a run that missed the criterion the own run met is drawn (CPU / own), as a cross: right of
+#: every ratio measured so far (the largest: the bandit on heldout-v3's porousLow, 3.56x).
 MISSED_AT = 4.0
 
 
@@ -133,9 +134,9 @@ def figure(rows: list[dict[str, Any]], names: list[str], path: Path) -> None:
     cols = columns(rows, names)
     fig, ax = plt.subplots(figsize=(9, 0.45 * len(rows) + 1.5))
     for k, (name, pick) in enumerate(cols):
-        cpu = [min(ratios(*pick(row))[1], MISSED_AT) for row in rows]
+        cpu = [ratios(*pick(row))[1] for row in rows]  # inf: missed the criterion the own run met
         y = [j + (k - (len(cols) - 1) / 2) * 0.08 for j in range(len(rows))]
-        missed = [c >= MISSED_AT for c in cpu]
+        missed = [c == float("inf") for c in cpu]
         ax.scatter([c for c, m in zip(cpu, missed, strict=True) if not m],
                    [v for v, m in zip(y, missed, strict=True) if not m], color=f"C{k}", s=18, label=name)
         ax.scatter([MISSED_AT] * sum(missed), [v for v, m in zip(y, missed, strict=True) if m], color=f"C{k}",
