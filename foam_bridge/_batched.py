@@ -56,11 +56,11 @@ from foam_bridge._config import (  # failure_reward: re-exported
     FoamEnvConfig,
     cost_per_iteration,
     failure_reward,
-    work_root,
 )
 from foam_bridge._env import action_spec, observation_spec
 from foam_bridge._records import EpisodeRecord
 from foam_bridge._replay import EpisodeReplay
+from foam_bridge._work_dirs import work_root
 
 __all__ = ["SEED_BOUND", "BatchedFoamEnv", "FoamBatchCore"]
 

@@ -12,60 +12,54 @@ worker processes) and validated by :meth:`FoamEnvConfig.validate`, which raises 
 construction. :meth:`FoamEnvConfig.to_json` / :meth:`FoamEnvConfig.from_json` are its one JSON codec (the
 "foam" section of a train-foam run's config.json).
 
-Over 450 lines (~550) because it is one dataclass whose docstring documents each of its ~45 fields (~190
-lines), with its validation, its derived properties and its codec, which belong together; the reward
-helpers below are a few lines each.
+The dataclass, its derived properties and the helpers that derive from a config are here; beside them,
+foam_bridge._constants holds the numbers its fields take, foam_bridge._config_checks the choices and
+validate's checks (both re-exported here), foam_bridge._config_json the JSON codec and
+foam_bridge._work_dirs the work directory.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import math
 import os
-import tempfile
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from types import MappingProxyType
 from typing import Any
 
-#: The paper's reference velocity (m/s); the observation divides |U|^2 by U_REF**2.
-U_REF = 44.2
-#: The tutorial's (and the paper's) step height h in metres.
-STEP_HEIGHT_H = 0.0127
-#: The paper's training criterion: initial residuals of U, k, omega < 1e-3 and p < 5e-2.
-TRAIN_CONVERGENCE: Mapping[str, float] = MappingProxyType({"U": 1e-3, "k": 1e-3, "omega": 1e-3, "p": 5e-2})
-#: The paper's test criterion: U, k, omega < 5e-4 (p < 5e-2).
-TEST_CONVERGENCE: Mapping[str, float] = MappingProxyType({"U": 5e-4, "k": 5e-4, "omega": 5e-4, "p": 5e-2})
+from foam_bridge._config_checks import (
+    ACTION_NAMES,
+    FOLLOW_ALPHA_U,
+    K_OMEGA_ACTION,
+    PIVOTS,
+    REWARDS,
+    SIMPLE_VARIANTS,
+    check_fields,
+)
+from foam_bridge._config_json import config_to_json, config_values
+from foam_bridge._constants import (
+    BUILTIN_ACTION_BOUNDS,
+    BUILTIN_INLET_VELOCITY,
+    BUILTIN_RELAX_K_OMEGA,
+    BUILTIN_SIMPLE_VARIANT,
+    MESH_SCALE_USABLE_MIN,
+    NEVER_CONVERGED,
+    OBSERVATION_BOUND,
+    PAPER_INLET_TURBULENCE,
+    STEP_HEIGHT_H,
+    TEST_CONVERGENCE,
+    TRAIN_CONVERGENCE,
+    U_REF,
+)
 
-#: A convergence threshold no residual meets: a run with it goes on to its iteration count.
-NEVER_CONVERGED = 1e-30
-
-SIMPLE_VARIANTS = ("SIMPLE", "SIMPLEC")
-#: The action's entries, in order (the third only with relax_k_omega="action").
-ACTION_NAMES = ("alpha_u", "alpha_p", "alpha_t")
-#: ``relax_k_omega`` value that relaxes the turbulence fields with alpha_u (the agent's momentum factor).
-FOLLOW_ALPHA_U = "alpha_u"
-#: ``relax_k_omega`` value that makes the turbulence fields' factor a third action, alpha_t.
-K_OMEGA_ACTION = "action"
-#: The built-in action box per factor (the paper's): [0.2, 0.95] for alpha_u, alpha_p (and alpha_t).
-BUILTIN_ACTION_BOUNDS = (0.2, 0.95)
-#: The built-in case's defaults, the paper's code's (and the tutorial's): SIMPLEC, k/omega relaxed at
-#: 0.8, inlet speed uniform in [35, 65] m/s, inlet turbulence from intensity 6.1e-4 and nu_t/nu 0.009.
-BUILTIN_SIMPLE_VARIANT = "SIMPLEC"
-BUILTIN_RELAX_K_OMEGA = 0.8
-BUILTIN_INLET_VELOCITY = (35.0, 65.0)
-PAPER_INLET_TURBULENCE = (6.1e-4, 0.009)
-#: Smallest mesh_scale of the built-in case measured usable (see FoamEnvConfig.mesh_scale).
-MESH_SCALE_USABLE_MIN = 0.4
-#: The costs a reward can count (FoamEnvConfig.reward): SIMPLE iterations (the paper's), the linear
-#: solvers' inner iterations (every "No Iterations" of the log) or the solver's own CPU seconds.
-REWARDS = ("iterations", "linear-iterations", "solver-time")
-#: What a controller's share 0.5 stands for on a case (FoamEnvConfig.pivot_at).
-PIVOTS = ("family", "own")
-#: Every observation entry is clipped into [-OBSERVATION_BOUND, OBSERVATION_BOUND] (NaN -> the bound):
-#: the last line of defence for a learner's normaliser; divergence detection ends episodes long before.
-OBSERVATION_BOUND = 1e6
+#: The constants and choices are re-exported: code imports them from here, beside the config.
+__all__ = [
+    "U_REF", "STEP_HEIGHT_H", "TRAIN_CONVERGENCE", "TEST_CONVERGENCE", "NEVER_CONVERGED", "SIMPLE_VARIANTS",
+    "ACTION_NAMES", "FOLLOW_ALPHA_U", "K_OMEGA_ACTION", "BUILTIN_ACTION_BOUNDS", "BUILTIN_SIMPLE_VARIANT",
+    "BUILTIN_RELAX_K_OMEGA", "BUILTIN_INLET_VELOCITY", "PAPER_INLET_TURBULENCE", "MESH_SCALE_USABLE_MIN",
+    "REWARDS", "PIVOTS", "OBSERVATION_BOUND", "FoamEnvConfig", "absolute_path", "cost_per_iteration",
+    "failure_reward", "without_convergence_test",
+]
 
 
 @dataclass(frozen=True)
@@ -306,88 +300,7 @@ class FoamEnvConfig:
 
     def validate(self) -> FoamEnvConfig:
         """Check every field; raise a one-line ``ValueError`` naming the first bad one. Returns self."""
-        _check(self.mesh_scale > 0 and math.isfinite(self.mesh_scale), "mesh_scale", self.mesh_scale)
-        _check_height(self.step_height)
-        if self.velocity_range is not None:
-            low, high = self.velocity_range
-            _check(0 < low <= high and math.isfinite(high), "inlet_velocity", self.inlet_velocity)
-        if self.inlet_turbulence is not None:
-            values = tuple(self.inlet_turbulence)
-            _check(len(values) == 2 and all(v > 0 and math.isfinite(v) for v in values), "inlet_turbulence",
-                   self.inlet_turbulence, "(intensity > 0, nu_t/nu > 0)")
-        for name in ("inlet_patch", "velocity_field", "pressure_field"):
-            value = getattr(self, name)
-            none_ok = name == "inlet_patch" and value is None  # a case without an inlet
-            _check(isinstance(value, str) and value != "" or none_ok, name, value,
-                   "a non-empty name" + " (or None: the case has no inlet)" * (name == "inlet_patch"))
-        _check(self.inlet_patch is not None or not (self.builtin or self.velocity_range is not None),
-               "inlet_patch", None, "an inlet patch where the inlet speed is set (the built-in case sets it)")
-        _check(self.simple_variant is None or self.simple_variant in SIMPLE_VARIANTS, "simple_variant",
-               self.simple_variant, f"None or one of {SIMPLE_VARIANTS}")
-        _check(_is_int(self.ranks) and self.ranks >= 1 and (self.ranks == 1 or not self.builtin), "ranks",
-               self.ranks, "an integer >= 1 (> 1 only for a user's case_dir)")
-        _check(_is_int(self.interval) and self.interval >= 1, "interval", self.interval, "an integer >= 1")
-        _check(_is_int(self.state_interval) and self.state_interval >= 1
-               and self.interval % self.state_interval == 0, "state_interval", self.state_interval,
-               f"an integer >= 1 that divides interval ({self.interval})")
-        _check(_is_int(self.max_iterations) and self.max_iterations >= self.interval, "max_iterations",
-               self.max_iterations, "an integer >= interval")
-        size = self.action_size
-        _check(len(self.action_low) == size and len(self.action_high) == size, "action_low/action_high",
-               (self.action_low, self.action_high),
-               f"{size} values each ({', '.join(ACTION_NAMES[:size])})")
-        for lo, hi in zip(self.action_low, self.action_high, strict=True):
-            _check(0 < lo <= hi <= 1, "action_low/action_high", (self.action_low, self.action_high),
-                   "0 < low <= high <= 1")
-        if self.relax_k_omega not in (None, FOLLOW_ALPHA_U, K_OMEGA_ACTION):
-            factor = self.relax_k_omega
-            _check(isinstance(factor, int | float) and not isinstance(factor, str) and 0 < factor <= 1,
-                   "relax_k_omega", factor,
-                   f"None, {FOLLOW_ALPHA_U!r}, {K_OMEGA_ACTION!r} or a factor in (0, 1]")
-        _check(len(self.convergence) > 0 and all(v > 0 for v in self.convergence.values()), "convergence",
-               dict(self.convergence), "a non-empty {field: threshold > 0}")
-        if self.confirm_alpha_u is not None:
-            factor = self.confirm_alpha_u
-            _check(isinstance(factor, int | float) and not isinstance(factor, bool) and 0 < factor < 1,
-                   "confirm_alpha_u", factor, "None or a factor in (0, 1)")
-        if self.confirm_alpha_t is not None:
-            factor = self.confirm_alpha_t
-            _check(isinstance(factor, int | float) and not isinstance(factor, bool) and 0 < factor <= 1
-                   and self.confirm_alpha_u is not None, "confirm_alpha_t", factor,
-                   "None, or a factor in (0, 1] beside a confirm_alpha_u")
-        _check(_is_int(self.residual_features) and self.residual_features >= 0, "residual_features",
-               self.residual_features, "an integer >= 0")
-        if self.observed_fields is not None:
-            names = self.observed_fields
-            _check(isinstance(names, tuple) and len(names) > 0 and len(set(names)) == len(names)
-                   and all(isinstance(name, str) and name != "" for name in names), "observed_fields",
-                   names, "None or a non-empty tuple of distinct field names")
-        _check(self.reward in REWARDS, "reward", self.reward, f"one of {REWARDS}")
-        _check(self.reward_scale > 0 and math.isfinite(self.reward_scale), "reward_scale", self.reward_scale)
-        _check(self.freeze_decades is None or not isinstance(self.freeze_decades, bool) and isinstance(
-            self.freeze_decades, int | float) and 0 <= self.freeze_decades < math.inf, "freeze_decades",
-            self.freeze_decades, "None or a number of decades >= 0")
-        pivot = self.action_pivot
-        _check(pivot is None or len(pivot) == len(self.action_low) and all(
-            lo <= x <= hi for x, lo, hi in zip(pivot, self.action_low, self.action_high, strict=True)),
-            "action_pivot", pivot, "None or one factor per action, each in the box")
-        radius = self.action_radius
-        _check(radius is None or not isinstance(radius, bool) and isinstance(radius, int | float)
-               and 0 < radius <= 1, "action_radius", radius, "None or a factor step in (0, 1]")
-        _check(self.pivot_at in PIVOTS, "pivot_at", self.pivot_at, f"one of {', '.join(PIVOTS)}")
-        _check(not self.observe_algorithm or self.variant is not None, "observe_algorithm",
-               self.observe_algorithm, "simple_variant set (the algorithm observed)")
-        _check(_is_int(self.start_time) and self.start_time >= 0 and not (self.start_time and self.builtin),
-               "start_time", self.start_time, "an integer >= 0 (0 for the built-in case)")
-        for name in ("observe_progress", "observe_action", "observe_gain", "scale_free_state"):
-            _check(isinstance(getattr(self, name), bool), name, getattr(self, name), "true or false")
-        _check(self.state_scale > 0, "state_scale", self.state_scale)
-        _check(self.step_timeout_s > 0, "step_timeout_s", self.step_timeout_s)
-        _check(self.divergence_threshold > 0, "divergence_threshold", self.divergence_threshold)
-        _check(self.state_divergence_ratio > 0 and math.isfinite(self.state_divergence_ratio),
-               "state_divergence_ratio", self.state_divergence_ratio)
-        if self.failure_penalty is not None:
-            _check(math.isfinite(self.failure_penalty), "failure_penalty", self.failure_penalty, "finite")
+        check_fields(self)
         return self
 
     @property
@@ -461,7 +374,8 @@ class FoamEnvConfig:
         Workers (spawned processes, Ray actors on other nodes) and OpenFOAM (run with ``-case`` from
         inside the case) do not share the caller's working directory: relative paths must not travel.
         """
-        return dataclasses.replace(self, case_dir=_absolute(self.case_dir), work_dir=_absolute(self.work_dir))
+        return dataclasses.replace(self, case_dir=absolute_path(self.case_dir),
+                                   work_dir=absolute_path(self.work_dir))
 
     @property
     def observed(self) -> tuple[str, ...]:
@@ -480,9 +394,7 @@ class FoamEnvConfig:
         """Every field by name as JSON-ready values (tuples as lists, ``convergence`` as a plain dict,
         paths as strings); the inverse of :meth:`from_json`. ``observed_fields`` only when set: a config
         without it writes the JSON it always wrote (config.json, reference cache keys)."""
-        return {item.name: _to_json(getattr(self, item.name)) for item in dataclasses.fields(self)
-                if not (item.name in _OMITTED_WHEN_NONE and getattr(self, item.name) is None
-                        or item.name in _OMITTED_AT_DEFAULT and getattr(self, item.name) == item.default)}
+        return config_to_json(self)
 
     @classmethod
     def from_json(cls, data: Any) -> FoamEnvConfig:
@@ -491,53 +403,11 @@ class FoamEnvConfig:
         Fields missing from ``data`` take the defaults (a run written before a field existed still
         loads); the JSON lists of tuple fields (and of a velocity or height range) become tuples again.
         """
-        if not isinstance(data, Mapping):
-            raise ValueError(f"the foam config must be a JSON object, got {type(data).__name__}")
-        unknown = sorted(set(data) - {item.name for item in dataclasses.fields(cls)})
-        if unknown:
-            raise ValueError(f"unknown foam config key(s): {', '.join(unknown)}")
-        values = dict(data)
-        for name in _JSON_TUPLE_FIELDS:
-            if values.get(name) is not None:
-                values[name] = _as_tuple(name, values[name])
-        for name in ("inlet_velocity", "step_height"):  # a number, or a range as a list
-            if isinstance(values.get(name), list):
-                values[name] = _as_tuple(name, values[name])
-        if "convergence" in values:
-            if not isinstance(values["convergence"], Mapping):
-                raise ValueError(f"foam config convergence: expected {{field: threshold}}, got "
-                                 f"{values['convergence']!r}")
-            values["convergence"] = dict(values["convergence"])
+        values = config_values(data, [item.name for item in dataclasses.fields(cls)])
         try:
             return cls(**values).validate()
         except TypeError as err:  # e.g. a string where a number belongs, met inside validate()
             raise ValueError(f"foam config: {err}") from None
-
-
-#: Fields stored as JSON lists that FoamEnvConfig holds as tuples.
-_JSON_TUPLE_FIELDS = ("action_low", "action_high", "turbulence_fields", "inlet_turbulence", "observed_fields",
-                      "action_pivot")
-#: Fields to_json leaves out at None (added after runs were written; their JSON stays byte-identical).
-_OMITTED_WHEN_NONE = ("observed_fields", "action_pivot", "freeze_decades", "action_radius", "confirm_alpha_t")
-#: Fields to_json leaves out at their default, for the same reason.
-_OMITTED_AT_DEFAULT = ("observe_state", "observe_algorithm", "action_share", "reward_scale", "observe_gain",
-                       "pivot_at", "state_interval")
-
-
-def _to_json(value: Any) -> Any:
-    if isinstance(value, tuple | list):
-        return [_to_json(v) for v in value]
-    if isinstance(value, Mapping):
-        return {str(k): _to_json(v) for k, v in value.items()}
-    if isinstance(value, Path):
-        return str(value)
-    return value
-
-
-def _as_tuple(name: str, value: Any) -> tuple:
-    if not isinstance(value, list | tuple):
-        raise ValueError(f"foam config {name}: expected a list, got {value!r}")
-    return tuple(value)
 
 
 def without_convergence_test(cfg: FoamEnvConfig) -> FoamEnvConfig:
@@ -566,55 +436,6 @@ def cost_per_iteration(cfg: FoamEnvConfig, cost: float, iterations: int) -> floa
     return cost / iterations
 
 
-def work_root(cfg: FoamEnvConfig, work_dir: Path | str | None = None,
-              prefix: str = "foam_bridge_") -> tuple[Path, bool]:
-    """The parent of the case directories and whether it is a fresh temporary directory.
-
-    ``work_dir``, else ``cfg.work_dir`` (created if missing), else a new temporary directory named
-    ``prefix...``, which the caller removes when it closes (unless ``cfg.keep_cases``). A path with
-    whitespace is a one-line ValueError: OpenFOAM (v1912) cannot run a case there (its foamDictionary and
-    solvers fail with "Could not find mandatory etc entry 'controlDict'"). A user's ``case_dir`` may have
-    whitespace: it is only copied.
-    """
-    chosen = work_dir if work_dir is not None else cfg.work_dir
-    if chosen is None:
-        _check_no_whitespace(Path(tempfile.gettempdir()), "the temporary directory (TMPDIR)")
-        return Path(tempfile.mkdtemp(prefix=prefix)).resolve(), True
-    root = _absolute(chosen)
-    _check_no_whitespace(root, "work_dir")
-    root.mkdir(parents=True, exist_ok=True)
-    return root, False
-
-
-def _check_no_whitespace(path: Path, what: str) -> None:
-    if any(char.isspace() for char in str(path)):
-        raise ValueError(f"{what} {str(path)!r} contains whitespace, where OpenFOAM cannot run a case; "
-                         f"choose a directory without spaces")
-
-
-def _absolute(path: Path | str | os.PathLike[str] | None) -> Path | None:
+def absolute_path(path: Path | str | os.PathLike[str] | None) -> Path | None:
     """``path`` made absolute (symlinks resolved), ``~`` expanded; None stays None."""
     return None if path is None else Path(path).expanduser().resolve()
-
-
-def _check_height(height: object) -> None:
-    """A step height > 0, or a range (low, high) with 0 < low <= high."""
-    if isinstance(height, tuple | list):
-        ok = len(height) == 2 and all(_is_number(h) and h > 0 and math.isfinite(h) for h in height) \
-            and height[0] <= height[1]
-        _check(ok, "step_height", height, "a height > 0 or a range (low, high) with 0 < low <= high")
-        return
-    _check(_is_number(height) and height > 0 and math.isfinite(height), "step_height", height)  # type: ignore[operator]
-
-
-def _is_number(value: object) -> bool:
-    return isinstance(value, int | float) and not isinstance(value, bool)
-
-
-def _is_int(value: object) -> bool:
-    return isinstance(value, int) and not isinstance(value, bool)
-
-
-def _check(ok: bool, name: str, value: object, expected: str = "a finite number > 0") -> None:
-    if not ok:
-        raise ValueError(f"FoamEnvConfig.{name}: expected {expected}, got {value!r}")

@@ -70,12 +70,7 @@ import numpy as np
 from foam_bridge import _base_case as base_case
 from foam_bridge import _episode_case as episode_case
 from foam_bridge import _template as template
-from foam_bridge._config import (
-    FoamEnvConfig,
-    cost_per_iteration,
-    failure_reward,
-    work_root,
-)
+from foam_bridge._config import FoamEnvConfig, cost_per_iteration, failure_reward
 from foam_bridge._confirm import confirm, meets, step_turbulence_factor
 from foam_bridge._logparse import LogParser, criterion_distance, field_residual
 from foam_bridge._openfoam import find_openfoam
@@ -90,6 +85,7 @@ from foam_bridge._spaces import (
     observation_spec,
     shares_of,
 )
+from foam_bridge._work_dirs import work_root
 
 #: Every value of ``info["outcome"]``.
 OUTCOMES = ("running", "converged", "truncated", "crashed", "diverged", "hung")

@@ -47,11 +47,12 @@ import numpy as np
 
 from foam_bridge._backends import BAD_INPUT_ERRORS, WORKER_DIED, env_dir
 from foam_bridge._batched import FoamBatchCore
-from foam_bridge._config import FoamEnvConfig, work_root
+from foam_bridge._config import FoamEnvConfig
 from foam_bridge._env import EPISODE_DIR
 from foam_bridge._fields import final_field
 from foam_bridge._logparse import SolverCost, read_solver_cost
 from foam_bridge._records import EpisodeRecord
+from foam_bridge._work_dirs import work_root
 
 __all__ = ["ConstantFactors", "Controller", "EpisodeJob", "EpisodeRun", "StatelessController", "StepRecord",
            "check_pool", "run_episodes"]
