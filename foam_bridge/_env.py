@@ -45,25 +45,23 @@ K+1 .. K+interval, exactly as in the paper's restart-based MDP (tested: the resi
 already change with the new factors). The first action of an episode is read at solver start-up.
 The state of iteration K is printed by stock function objects before the pause, in full precision.
 
-Why one module of ~530 lines: it is one class, the episode's state machine (reset, step, the
-solver's faults, the confirmation restart, the freeze near the criterion, the episode record), whose
-methods share its state; the case files, the solver process, the log and the action and observation
-boxes (foam_bridge._spaces) are in their own modules already.
+This module is the episode's state machine (reset, step, the solver's faults, the confirmation restart,
+the freeze near the criterion, the episode record). What it draws at reset is in
+foam_bridge._episode_draws, how a solver event becomes an outcome in foam_bridge._outcomes, the
+observation in foam_bridge._observation and the env directory's lock in foam_bridge._env_lock; the case
+files, the solver process, the log and the action and observation boxes (foam_bridge._spaces) are in
+their own modules.
 """
 
 from __future__ import annotations
 
-import contextlib
-import fcntl
 import math
-import os
 import shutil
-import signal
 import time
-from collections import OrderedDict, deque
+from collections import OrderedDict
 from functools import partial
 from pathlib import Path
-from typing import Any, BinaryIO
+from typing import Any
 
 import numpy as np
 
@@ -72,10 +70,14 @@ from foam_bridge import _episode_case as episode_case
 from foam_bridge import _template as template
 from foam_bridge._config import FoamEnvConfig, cost_per_iteration, failure_reward
 from foam_bridge._confirm import confirm, meets, step_turbulence_factor
+from foam_bridge._env_lock import claim_directory
+from foam_bridge._episode_draws import episode_height, episode_velocity
 from foam_bridge._logparse import LogParser, criterion_distance, field_residual
+from foam_bridge._observation import EpisodeObservation
 from foam_bridge._openfoam import find_openfoam
+from foam_bridge._outcomes import CASE_STOP, FAILURES, OUTCOMES, classify
 from foam_bridge._records import EpisodeRecord
-from foam_bridge._solver import DIVERGED, EXITED, HUNG, MISSED, PAUSED, FoamSolver
+from foam_bridge._solver import PAUSED, FoamSolver
 from foam_bridge._spaces import (
     BoxSpec,
     action_spec,
@@ -87,18 +89,6 @@ from foam_bridge._spaces import (
 )
 from foam_bridge._work_dirs import work_root
 
-#: Every value of ``info["outcome"]``.
-OUTCOMES = ("running", "converged", "truncated", "crashed", "diverged", "hung")
-#: Outcomes that are a failure of the solver (terminated, with the failure penalty).
-FAILURES = ("crashed", "diverged", "hung")
-#: The cause of a "converged" episode that the case's own function object ended (a runTimeControl with
-#: ``satisfiedAction end``: its criterion, e.g. a settled force coefficient), followed by its name.
-CASE_STOP = "ended by the case's own function object"
-#: The observed gain's bound in decades (FoamEnvConfig.observe_gain): a blow-up or a restart's jump says
-#: no more than "a great loss" or "a great gain".
-GAIN_BOUND = 5.0
-#: Lock file held (fcntl.flock) by the FoamCaseEnv that owns an env directory.
-LOCK_FILE = ".foam_bridge.lock"
 #: The sub-directory of an env directory that holds the running episode's case (read by the episode pool).
 EPISODE_DIR = "episode"
 #: Meshes of a step-height family one env keeps. A new height costs one blockMesh (template.mesh_builtin):
@@ -155,7 +145,7 @@ class FoamCaseEnv:
         parent, temporary = work_root(cfg, work_dir)
         self._tmp = parent if temporary else None
         self.root = parent / f"env_{env_id}"
-        self._lock = _claim_directory(self.root)
+        self._lock = claim_directory(self.root)
         self.base = self.root / "base"
         self.case_dir = self.root / EPISODE_DIR
         try:
@@ -195,8 +185,9 @@ class FoamCaseEnv:
         self._stop_solver()
         if seed is not None:
             self._rng = np.random.default_rng(seed)
-        velocity = self._episode_velocity(options or {})
-        self._use_height(self._episode_height(options or {}))  # drawn after the velocity (see config)
+        velocity = episode_velocity(self.cfg, self._rng, options or {}, self.base, self.openfoam)
+        # the height is drawn after the velocity (see FoamEnvConfig.step_height)
+        self._use_height(episode_height(self.cfg, self._rng, options or {}))
         episode_case.write_episode_case(self.base, self.case_dir, self.cfg, velocity, self.case_info,
                                          self.openfoam)
         inlet, cells = episode_case.initial_state(self.case_info, velocity)
@@ -211,22 +202,15 @@ class FoamCaseEnv:
         self._restart_at: int | None = None  # a failed check: the solver goes on from these fields
         self._unconfirmed = False  # a check has failed: the boundaries are checked from now on
         self._cost = 0.0
-        self._features: deque[np.ndarray] = deque(
-            [np.zeros(len(self.cfg.observed))] * self.cfg.residual_features,
-            maxlen=self.cfg.residual_features or None)
-        self._distance: float | None = None  # the criterion distance at the last step boundary
-        self._gain = 0.0
         self._episode = {"env_id": self.env_id, "seed": seed, "inlet_velocity": velocity,
                          "step_height": math.nan if self._height is None else self._height, "actions": [],
                          "return": 0.0, "steps": 0, "solver_idle_s": 0.0, "started": time.monotonic()}
         if self.cfg.confirm_alpha_u is not None:
             self._episode["confirmations"] = []
         self._done = self._frozen = False
-        # the scale-free state is relative to this episode's inlet (state_scale if it has none)
-        self._scale = inlet if self.cfg.scale_free_state and inlet > 0 else self.cfg.state_scale
-        self._state = (inlet + cells) / self._scale
+        self._observed = EpisodeObservation(self.cfg, inlet, cells)
         self._factors = (np.asarray(self.cfg.action_low, np.float64) + np.asarray(self.cfg.action_high)) / 2
-        self._obs = self._observation()
+        self._obs = self._observed.vector(self._iterations, self._factors)
         return self._obs.copy(), self._info("running", "", {})
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
@@ -244,7 +228,7 @@ class FoamCaseEnv:
         event = self._advance(text)
         # stop before accounting: the whole output is then parsed, whatever had been read so far
         code = self._stop_solver() if event != PAUSED else None
-        outcome, cause, iterations = self._classify(event, code)
+        outcome, cause, iterations = classify(event, code, self._parser, self.cfg, self._target)
         if self.cfg.confirm_alpha_u is not None:
             outcome, cause, iterations = self._confirmed(outcome, cause, iterations, alpha, text)
         previous, self._iterations = self._iterations, max(iterations, self._iterations)
@@ -256,7 +240,8 @@ class FoamCaseEnv:
             reward = -(self._cost - spent) * self.cfg.reward_scale
         residuals = self._residuals()
         self._frozen = self._frozen or self._near_criterion(residuals)
-        self._update_observation(outcome, residuals)
+        self._observed.update(outcome, residuals, self._parser)
+        self._obs = self._observed.vector(self._iterations, self._factors)
         self._episode["return"] += reward
         self._episode["steps"] += 1
         info = self._info(outcome, cause, residuals)
@@ -302,34 +287,6 @@ class FoamCaseEnv:
     def solver_pgid(self) -> int | None:
         """Process-group id of the running solver (None between episodes); for tests and monitoring."""
         return None if self._solver is None else self._solver.pgid
-
-    def _episode_velocity(self, options: dict[str, Any]) -> float | None:
-        """This episode's inlet speed: the option, else drawn from the config's range; None: the case's."""
-        if options.get("inlet_velocity") is not None:
-            velocity = float(options["inlet_velocity"])
-            if not (math.isfinite(velocity) and velocity > 0):
-                raise ValueError(f"options['inlet_velocity']: expected a speed > 0, got {velocity!r}")
-            if self.cfg.case_dir is not None and self.cfg.velocity_range is None:
-                base_case.check_inlet_settable(self.base, self.cfg, self.openfoam)
-            return velocity
-        if self.cfg.velocity_range is None:
-            return None
-        return float(self._rng.uniform(*self.cfg.velocity_range))
-
-    def _episode_height(self, options: dict[str, Any]) -> float | None:
-        """This episode's step height: the option, else drawn from the config's range, else the fixed
-        one (None: a user's case, whose mesh is its own)."""
-        if options.get("step_height") is not None:
-            height = float(options["step_height"])
-            if not self.cfg.builtin:
-                raise ValueError("options['step_height'] applies to the built-in backward-facing step only "
-                                 "(a case of your own keeps its own mesh)")
-            if not (math.isfinite(height) and height > 0):
-                raise ValueError(f"options['step_height']: expected a height > 0 in m, got {height!r}")
-            return height
-        if self.cfg.height_range is None:
-            return self.cfg.fixed_height if self.cfg.builtin else None
-        return float(self._rng.uniform(*self.cfg.height_range))
 
     def _use_height(self, height: float | None) -> None:
         """Make ``self.base`` (and its CaseInfo) the mesh of ``height``: built when first met, the last
@@ -400,40 +357,7 @@ class FoamCaseEnv:
                 return "running", "", iterations
             event = self._advance(text)
             code = self._stop_solver() if event != PAUSED else None
-            outcome, cause, iterations = self._classify(event, code)
-
-    def _classify(self, event: str, code: int | None) -> tuple[str, str, int]:
-        """(outcome, cause, K) of a solver event, from the fully parsed output of a stopped solver.
-
-        A divergence in the log wins over the event that stopped the solver (a watchdog that fired
-        while a NaN was still in the pipe is a divergence), so the outcome does not depend on timing.
-        """
-        parser, cfg = self._parser, self.cfg
-        if event == PAUSED:
-            return "running", "", parser.completed
-        if parser.failed_at is not None:
-            return "diverged", f"diverged: {parser.diverged}", parser.failed_at
-        if event == MISSED or parser.completed > self._target:
-            return "crashed", (f"missed the pause after iteration {self._target}: the solver went on to "
-                               f"iteration {parser.completed} without reading its next factors"), \
-                min(parser.completed, self._target)
-        if event == HUNG:
-            return "hung", (f"watchdog: no progress within step_timeout_s={cfg.step_timeout_s} s "
-                            f"(last iteration started: {parser.iteration})"), parser.iteration
-        assert event in (EXITED, DIVERGED)
-        if parser.converged_at is not None:
-            return "converged", "", parser.converged_at
-        if parser.stopped_at is not None and code == 0:  # the case's own criterion, not residualControl's
-            return "converged", f"{CASE_STOP} {parser.stopped_by} (runTimeControl)", parser.stopped_at
-        if code == 0 and parser.completed >= cfg.max_iterations:
-            return "truncated", "", parser.completed
-        detail = parser.error or "no error message"
-        if code is not None and code < 0:
-            detail = f"killed by {signal.Signals(-code).name}; {detail}"
-        elif code == 0:
-            detail = "it ended without converging before max_iterations"
-        cause = f"simpleFoam exited with code {code} at iteration {parser.iteration}: {detail}"
-        return "crashed", cause, parser.iteration
+            outcome, cause, iterations = classify(event, code, self._parser, self.cfg, self._target)
 
     def _episode_cost(self) -> float:
         """The episode's cost so far in the reward's unit (cfg.reward; see FoamEnvConfig.reward)."""
@@ -451,49 +375,6 @@ class FoamCaseEnv:
         """Whether the run is within cfg.freeze_decades of its criterion (False when it is None)."""
         limit = self.cfg.freeze_decades
         return limit is not None and criterion_distance(residuals, self.cfg.convergence) <= limit
-
-    def _update_observation(self, outcome: str, residuals: dict[str, float]) -> None:
-        if self.cfg.residual_features:
-            # the observed fields, which need not be the criterion's (FoamEnvConfig.observed_fields): the
-            # parser holds every solved field's residual; a field not solved reads as 1 (log 0)
-            solved = self._parser.residuals
-            levels = [residuals.get(name, field_residual(solved, name)) for name in self.cfg.observed]
-            logs = [np.log10(max(level, 1e-30)) if level is not None and np.isfinite(level) else 0.0
-                    for level in levels]
-            self._features.append(np.asarray(logs))
-        self._note_gain(residuals)
-        parser = self._parser
-        # a failed step keeps the last state read (the solver's last one may be a blow-up)
-        inlet = parser.inlet_state if self.cfg.inlet_patch is not None else 0.0  # no inlet: the cells alone
-        if outcome not in FAILURES and inlet is not None and parser.cells_state is not None:
-            self._state = (inlet + parser.cells_state) / self._scale
-        self._obs = self._observation()
-
-    def _note_gain(self, residuals: dict[str, float]) -> None:
-        """The last step's gain (FoamEnvConfig.observe_gain); a step without residuals keeps the last."""
-        if not residuals:
-            return
-        distance = criterion_distance(residuals, self.cfg.convergence)
-        if not np.isfinite(distance):
-            return
-        if self._distance is not None:
-            self._gain = float(np.clip(self._distance - distance, -GAIN_BOUND, GAIN_BOUND))
-        self._distance = distance
-
-    def _observation(self) -> np.ndarray:
-        """state, residual features, progress, factors in force (FoamEnvConfig's observation layout)."""
-        cfg = self.cfg
-        parts = [np.array([self._state])] if cfg.observe_state else []
-        parts += list(self._features) if cfg.residual_features else []
-        if cfg.observe_progress:
-            parts.append(np.array([self._iterations / cfg.max_iterations]))
-        if cfg.observe_algorithm:
-            parts.append(np.array([float(cfg.variant == "SIMPLEC")]))
-        if cfg.observe_action:  # as the policy acts: a share of the box with action_share
-            parts.append(shares_of(cfg, self._factors))
-        if cfg.observe_gain:
-            parts.append(np.array([self._gain]))
-        return bounded_observation(np.concatenate(parts))
 
     def _info(self, outcome: str, cause: str, residuals: dict[str, float]) -> dict[str, Any]:
         return {"iterations": self._iterations, "residuals": residuals, "outcome": outcome,
@@ -522,28 +403,3 @@ class FoamCaseEnv:
         return code
 
 
-def _claim_directory(root: Path) -> BinaryIO:
-    """Create ``root`` and take the exclusive lock on its LOCK_FILE; returns the open lock file.
-
-    One-line ValueError if another live FoamCaseEnv holds it. The lock lives as long as the file
-    object (closed by close(), by garbage collection, or by the kernel when the process dies). If the
-    owner removed the directory between our open and our lock (its close()), the lock is on a dead
-    file: retry on the new one.
-    """
-    while True:
-        root.mkdir(parents=True, exist_ok=True)
-        path = root / LOCK_FILE
-        try:
-            lock = open(path, "ab")  # noqa: SIM115 (held until FoamCaseEnv.close)
-        except FileNotFoundError:
-            continue  # the directory vanished under us
-        try:
-            fcntl.flock(lock.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            lock.close()
-            raise ValueError(f"env directory {root} is in use by another FoamCaseEnv (same work_dir "
-                             f"and env_id); give each env its own env_id or work_dir") from None
-        with contextlib.suppress(FileNotFoundError):
-            if os.path.samestat(os.fstat(lock.fileno()), os.stat(path)):
-                return lock
-        lock.close()
