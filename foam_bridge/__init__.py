@@ -84,33 +84,42 @@ _HOMES: dict[str, tuple[str, ...]] = {
         "reconstructed_case",
     ),
     "_backends.reaper": ("kill_processes_under",),
-    "_fields": ("relative_l2", "time_directories"),
+    "_fields": ("read_internal_field", "relative_l2", "time_directories"),
     "_solver": ("run_to_end",),
+    "_function_objects": (
+        "FunctionObjectTable", "final_rows", "quantity_name", "relative_difference", "row_scale",
+        "time_series",
+    ),
+    "_answer_monitor": ("AnswerMonitor", "restore_case"),
+    "_settle_verdict": ("DEFAULT_TOLERANCE", "SETTLED", "SettleRule", "Verdict"),
+    "_iterative_error": ("QuantityTrack",),
 }
 _EXPORTS = {name: f"foam_bridge.{module}" for module, names in _HOMES.items() for name in names}
 #: Public modules: ``from foam_bridge import foamdict`` (imported as the package's submodule).
 _MODULES = ("foamdict",)
 
 __all__ = [
-    "ACTION_NAMES", "AsyncFoamEnv", "BACKENDS", "BAD_INPUT_ERRORS", "BUILTIN_INLET_VELOCITY",
-    "BUILTIN_RELAX_K_OMEGA", "BatchedFoamEnv", "CASE_DEFAULT_FIELDS", "CASE_STOP", "COLUMNS", "CaseError",
-    "CaseInfo", "CaseSpec", "ClusterError", "Condition", "ConstantFactors", "ENV_ID", "EpisodeJob",
-    "EpisodeRecord", "EpisodeRun", "FAILURES", "FOLLOW_ALPHA_U", "FamilyCase", "FamilyFactory",
-    "FoamCaseEnv", "FoamEnvConfig", "GEOMETRY_KINDS", "GeneratedCase", "GridCell", "K_OMEGA_ACTION",
-    "LocalBackend", "LogParser", "MESH_SCALE_USABLE_MIN", "NEVER_CONVERGED", "NoResidualControl",
-    "OBSERVATION_BOUND", "OUTCOMES", "OpenFOAMNotFoundError", "PAPER_INLET_TURBULENCE", "POST_PROCESSING",
-    "PoolLostError", "REWARDS", "RelaxationControlEnv", "RelaxationControlVecEnv", "Reply", "Request",
-    "SIMPLE_VARIANTS", "STEP_HEIGHT_H", "SolverCost", "SolverFailure", "StatelessController", "StepRecord",
-    "TEST_CONVERGENCE", "TRAIN_CONVERGENCE", "TimedSteps", "U_REF", "VARIATION_NAMES", "Variation",
-    "action_spec", "best_cell", "build_family", "case_defaults", "check_case", "check_case_files",
-    "copy_case", "criterion_distance", "declared_patches", "decompose", "export_case", "factors_of",
-    "failure_reward", "field_residual", "find_openfoam", "foamdict", "generate_cases", "grid_config",
-    "kill_processes_under", "latest_time", "make_backend", "mpirun_path", "plot_grid", "plot_grid_slices",
-    "processor_count", "read_generated", "read_grid_csv", "read_manifest", "read_rows", "reconstruct",
-    "reconstruct_into", "reconstructed_case", "relative_l2", "rows_to_csv", "run_application",
-    "run_episodes", "run_grid", "run_to_end", "sample_specs", "sample_variations", "shares_of",
-    "solved_field_names", "time_directories", "validate_pool", "without_convergence_test", "write_case",
-    "write_grid_csv",
+    "ACTION_NAMES", "AnswerMonitor", "AsyncFoamEnv", "BACKENDS", "BAD_INPUT_ERRORS",
+    "BUILTIN_INLET_VELOCITY", "BUILTIN_RELAX_K_OMEGA", "BatchedFoamEnv", "CASE_DEFAULT_FIELDS", "CASE_STOP",
+    "COLUMNS", "CaseError", "CaseInfo", "CaseSpec", "ClusterError", "Condition", "ConstantFactors",
+    "DEFAULT_TOLERANCE", "ENV_ID", "EpisodeJob", "EpisodeRecord", "EpisodeRun", "FAILURES",
+    "FOLLOW_ALPHA_U", "FamilyCase", "FamilyFactory", "FoamCaseEnv", "FoamEnvConfig", "FunctionObjectTable",
+    "GEOMETRY_KINDS", "GeneratedCase", "GridCell", "K_OMEGA_ACTION", "LocalBackend", "LogParser",
+    "MESH_SCALE_USABLE_MIN", "NEVER_CONVERGED", "NoResidualControl", "OBSERVATION_BOUND", "OUTCOMES",
+    "OpenFOAMNotFoundError", "PAPER_INLET_TURBULENCE", "POST_PROCESSING", "PoolLostError", "QuantityTrack",
+    "REWARDS", "RelaxationControlEnv", "RelaxationControlVecEnv", "Reply", "Request", "SETTLED",
+    "SIMPLE_VARIANTS", "STEP_HEIGHT_H", "SettleRule", "SolverCost", "SolverFailure", "StatelessController",
+    "StepRecord", "TEST_CONVERGENCE", "TRAIN_CONVERGENCE", "TimedSteps", "U_REF", "VARIATION_NAMES",
+    "Variation", "Verdict", "action_spec", "best_cell", "build_family", "case_defaults", "check_case",
+    "check_case_files", "copy_case", "criterion_distance", "declared_patches", "decompose", "export_case",
+    "factors_of", "failure_reward", "field_residual", "final_rows", "find_openfoam", "foamdict",
+    "generate_cases", "grid_config", "kill_processes_under", "latest_time", "make_backend", "mpirun_path",
+    "plot_grid", "plot_grid_slices", "processor_count", "quantity_name", "read_generated", "read_grid_csv",
+    "read_internal_field", "read_manifest", "read_rows", "reconstruct", "reconstruct_into",
+    "reconstructed_case", "relative_difference", "relative_l2", "restore_case", "row_scale", "rows_to_csv",
+    "run_application", "run_episodes", "run_grid", "run_to_end", "sample_specs", "sample_variations",
+    "shares_of", "solved_field_names", "time_directories", "time_series", "validate_pool",
+    "without_convergence_test", "write_case", "write_grid_csv",
 ]
 
 
@@ -130,6 +139,7 @@ def __dir__() -> list[str]:
 
 if TYPE_CHECKING:  # what type checkers and editors see; at run time __getattr__ loads these
     from foam_bridge import foamdict
+    from foam_bridge._answer_monitor import AnswerMonitor, restore_case
     from foam_bridge._async_batch import AsyncFoamEnv
     from foam_bridge._backends import BACKENDS, BAD_INPUT_ERRORS, Reply, Request, make_backend, validate_pool
     from foam_bridge._backends.local import LocalBackend
@@ -184,7 +194,15 @@ if TYPE_CHECKING:  # what type checkers and editors see; at run time __getattr__
         sample_variations,
     )
     from foam_bridge._family_env import FamilyFactory
-    from foam_bridge._fields import relative_l2, time_directories
+    from foam_bridge._fields import read_internal_field, relative_l2, time_directories
+    from foam_bridge._function_objects import (
+        FunctionObjectTable,
+        final_rows,
+        quantity_name,
+        relative_difference,
+        row_scale,
+        time_series,
+    )
     from foam_bridge._generator import GeneratedCase, generate_cases, read_generated, write_case
     from foam_bridge._generator_specs import GEOMETRY_KINDS, CaseSpec, sample_specs
     from foam_bridge._grid import (
@@ -199,6 +217,7 @@ if TYPE_CHECKING:  # what type checkers and editors see; at run time __getattr__
         write_grid_csv,
     )
     from foam_bridge._gym_envs import RelaxationControlEnv, RelaxationControlVecEnv
+    from foam_bridge._iterative_error import QuantityTrack
     from foam_bridge._logparse import (
         LogParser,
         SolverCost,
@@ -216,6 +235,7 @@ if TYPE_CHECKING:  # what type checkers and editors see; at run time __getattr__
         reconstructed_case,
     )
     from foam_bridge._records import COLUMNS, EpisodeRecord, read_rows, rows_to_csv
+    from foam_bridge._settle_verdict import DEFAULT_TOLERANCE, SETTLED, SettleRule, Verdict
     from foam_bridge._solver import run_to_end
     from foam_bridge._spaces import action_spec, factors_of, shares_of
     from foam_bridge._template import copy_case, run_application

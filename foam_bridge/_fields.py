@@ -14,11 +14,17 @@ of the field they stop at; :func:`relative_l2` measures that against a long refe
 
 from __future__ import annotations
 
+import gzip
+import re
 from pathlib import Path
 
 import numpy as np
 
-__all__ = ["final_field", "relative_l2", "time_directories", "time_directory"]
+__all__ = ["final_field", "read_internal_field", "relative_l2", "time_directories", "time_directory"]
+
+#: The start of a non-uniform internal field: its element type and count.
+_NONUNIFORM = re.compile(rb"internalField\s+nonuniform\s+List<(\w+)>\s*(\d+)\s*\(")
+_WIDTH = {b"scalar": 1, b"vector": 3, b"symmTensor": 6, b"tensor": 9, b"sphericalTensor": 1}
 
 
 def time_directories(case: Path) -> list[tuple[float, Path]]:
@@ -67,3 +73,50 @@ def relative_l2(field: np.ndarray | None, reference: np.ndarray | None) -> float
         return None
     norm = float(np.linalg.norm(reference))
     return float(np.linalg.norm(field - reference)) / norm if norm > 0 else None
+
+
+def read_internal_field(path: Path) -> tuple[np.ndarray, bool] | None:
+    """(internal field, uniform?) of one field file (``path`` or ``path.gz``), float64, one row per cell;
+    None if it is missing or unreadable. A uniform field comes back as its one value. Binary fields of
+    64-bit scalars are read straight from the bytes (the answer monitor reads one every few iterations:
+    foam_bridge._answer_monitor); anything else through foamlib."""
+    found = [p for p in (path, path.with_name(path.name + ".gz")) if p.is_file()]
+    if not found:
+        return None
+    try:
+        data = found[0].read_bytes()
+        if found[0].suffix == ".gz":
+            data = gzip.decompress(data)
+    except OSError:
+        return None
+    fast = _binary_internal(data)
+    return (fast, False) if fast is not None else _foamlib_internal(found[0])
+
+
+def _binary_internal(data: bytes) -> np.ndarray | None:
+    """A binary non-uniform internal field of 64-bit scalars, else None (ascii, uniform, other widths)."""
+    head = data[:4096]
+    if b"binary" not in head or b"scalar=64" not in head:
+        return None
+    match = _NONUNIFORM.search(data)
+    if match is None or match.group(1) not in _WIDTH:
+        return None
+    width, count = _WIDTH[match.group(1)], int(match.group(2))
+    end = match.end() + 8 * width * count
+    if len(data) < end + 1 or data[end:end + 1] != b")":
+        return None
+    values = np.frombuffer(data, dtype="<f8", count=width * count, offset=match.end())
+    return values.reshape(count, width) if width > 1 else values.copy()
+
+
+def _foamlib_internal(path: Path) -> tuple[np.ndarray, bool] | None:
+    from foamlib import FoamFieldFile
+
+    try:
+        file = FoamFieldFile(path)
+        values, kind = np.asarray(file.internal_field, dtype=np.float64), str(file.class_)
+    except Exception:  # noqa: BLE001 - an unreadable field is "not read", not a crash
+        return None
+    # foamlib gives a uniform field as its value: ndim 0 for scalars, 1 for vectors (a scalar field's
+    # cells are ndim 1 too, hence the class)
+    return values, values.ndim < (1 if "Scalar" in kind else 2)

@@ -286,13 +286,16 @@ def _kill_all(leader: int, ranks: int) -> None:
 
 
 def run_to_end(case: Path, openfoam: OpenFOAM, parser: LogParser, timeout_s: float,
-               ranks: int = 1) -> tuple[int, float]:
+               ranks: int = 1, watch: Callable[[LogParser], None] | None = None) -> tuple[int, float]:
     """Run simpleFoam on ``case`` once, start to end, without pauses (the reference for chunked runs);
     ``ranks`` > 1: under mpirun, ``case`` decomposed already.
 
     The case must not pause (see foam_bridge._episode_case.make_uninterrupted). The output goes to
-    ``log.simpleFoam`` and is parsed once the run has ended. Returns (exit code, wall seconds); past
-    ``timeout_s``, or on any exception here (Ctrl-C), every process of the run is killed first.
+    ``log.simpleFoam``; it is parsed once the run has ended, or, with ``watch``, as it grows:
+    ``watch(parser)`` every WATCH_POLL_S while the solver runs and once after it ended (the answer
+    monitor, foam_bridge._answer_monitor, reads and stops the run from there). Returns (exit code, wall
+    seconds); past ``timeout_s``, or on any exception here (Ctrl-C, one raised by ``watch``), every
+    process of the run is killed first.
     """
     log = case / "log.simpleFoam"
     start = time.monotonic()
@@ -302,14 +305,37 @@ def run_to_end(case: Path, openfoam: OpenFOAM, parser: LogParser, timeout_s: flo
                                    stderr=subprocess.STDOUT, start_new_session=True,
                                    preexec_fn=_die_with_parent())  # noqa: PLW1509
         try:
-            code = process.wait(timeout_s)
+            code = process.wait(timeout_s) if watch is None else _watched(process, log, parser, watch,
+                                                                          start + timeout_s)
         except BaseException:  # the timeout, Ctrl-C: the leader is unreaped, its session still ours
             if process.returncode is None:
                 _kill_all(process.pid, ranks)
             process.wait()
             raise
     wall = time.monotonic() - start
-    parser.feed(log.read_bytes())
-    parser.finish()
+    if watch is None:
+        parser.feed(log.read_bytes())
+        parser.finish()
     return code, wall
 
+
+#: How often a watched run's log is read.
+WATCH_POLL_S = 0.1
+
+
+def _watched(process: subprocess.Popen, log: Path, parser: LogParser, watch: Callable[[LogParser], None],
+             deadline: float) -> int:
+    """Wait for ``process``, feeding ``parser`` the log as it grows and calling ``watch`` after each read
+    (and once after the exit, the log read to its end and finished)."""
+    with open(log, "rb") as reader:
+        while True:
+            code = process.poll()
+            parser.feed(reader.read())
+            if code is not None:
+                parser.finish()
+                watch(parser)
+                return code
+            watch(parser)
+            if time.monotonic() > deadline:
+                raise subprocess.TimeoutExpired(process.args, 0)
+            time.sleep(WATCH_POLL_S)

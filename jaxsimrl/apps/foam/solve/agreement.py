@@ -13,11 +13,12 @@ Measures (the other run, the case's own or the constant one, is the reference b;
   foam_bridge._fields.relative_l2); a uniform field is broadcast to the other's cells.
 - function objects: every value (a number, or a vector as a whole, as for the fields) of the rows of the
   final time of each time series under ``postProcessing/`` (forces, coefficients, probes, fieldMinMax,
-  surfaceFieldValue...): ``|a - b| / max(|b|, SCALE_FLOOR x the row's largest |value|)``. The floor keeps a
+  surfaceFieldValue...; read and named by foam_bridge's function-object reader, ``<object>/<file> [row]
+  column``): ``|a - b| / max(|b|, 1e-3 x the row's largest |value|)``. The floor keeps a
   value that is noise next to its row (a side-force coefficient of 1e-24 in a 2D case) from turning
   round-off into a huge relative difference; it is small so that a drag coefficient 100x below the lift
-  is still measured against itself. Left out: outputs that are not results (NOT_RESULTS: residuals,
-  timing), discrete columns (DISCRETE_COLUMNS: where a minimum sits), files that are not time series
+  is still measured against itself. Left out: outputs that are not results (residuals,
+  timing), discrete columns (where a minimum sits), files that are not time series
   (VTK streamlines, sampled sets).
 
 Tolerance, from r = the loosest threshold of the case's residualControl (the equation that stops last
@@ -42,30 +43,27 @@ one. Only runs that both converged are compared.
 from __future__ import annotations
 
 import math
-import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from foam_bridge import POST_PROCESSING, latest_time, relative_l2
+from foam_bridge import FunctionObjectTable as Table
+from foam_bridge import (
+    final_rows,
+    latest_time,
+    quantity_name,
+    read_internal_field,
+    relative_difference,
+    relative_l2,
+    row_scale,
+    time_series,
+)
 
 #: Tolerances: these factors x the case's loosest residualControl threshold (see the module docstring).
 FIELD_FACTOR = 5.0
 FUNCTION_OBJECT_FACTOR = 10.0
-#: A function-object value is measured against at least this fraction of its row's largest |value|.
-SCALE_FLOOR = 1e-3
-#: Function-object files that hold no result of the run: residuals and timing differ by construction.
-NOT_RESULTS = ("solverInfo.dat", "residuals.dat", "timeInfo.dat", "time.dat")
-#: Columns that are not continuous in the solution: where a minimum or maximum sits (a cell centre, which
-#: jumps to a neighbouring cell on a near tie) and which processor holds it.
-DISCRETE_COLUMNS = ("location(", "processor")
-#: A cell of a function object's table: a word with an optional parenthesised tail, or a parenthesised
-#: group (a vector); "location(min)" and "(1 2 3)" are one cell each.
-_CELL = re.compile(r"[^\s()]*\([^()]*\)|[^\s()]+")
-
-
 def tolerances(criterion: Mapping[str, float]) -> tuple[float, float]:
     """(fields', function objects') agreement tolerance of a case with this residualControl ({field:
     threshold})."""
@@ -172,21 +170,9 @@ def spread_line(spread: Mapping[str, Any], criterion: Mapping[str, float]) -> st
 
 
 def read_internal(path: Path) -> tuple[np.ndarray, bool] | None:
-    """(internal field, uniform?) of one field file (ascii or binary; ``path`` or ``path.gz``); None if
-    it is missing or unreadable. A uniform field comes back as its one value."""
-    from foamlib import FoamFieldFile
-
-    found = [p for p in (path, path.with_name(path.name + ".gz")) if p.is_file()]
-    if not found:
-        return None
-    try:
-        file = FoamFieldFile(found[0])
-        values, kind = np.asarray(file.internal_field, dtype=np.float64), str(file.class_)
-    except Exception:  # noqa: BLE001 - an unreadable field is "not compared" (with a note), not a crash
-        return None
-    # foamlib gives a uniform field as its value: ndim 0 for scalars, 1 for vectors (a scalar field's
-    # cells are ndim 1 too, hence the class)
-    return values, values.ndim < (1 if "Scalar" in kind else 2)
+    """(internal field, uniform?) of one field file (foam_bridge's reader: ascii or binary, ``path`` or
+    ``path.gz``); None if it is missing or unreadable. A uniform field comes back as its one value."""
+    return read_internal_field(path)
 
 
 def field_difference(ours: Path, theirs: Path, name: str, label: str = "own") -> tuple[float | None, str]:
@@ -206,11 +192,6 @@ def field_difference(ours: Path, theirs: Path, name: str, label: str = "own") ->
     if value is None:  # a zero reference: equal only if both are zero
         value = 0.0 if not np.any(a) else math.inf
     return value, ""
-
-
-#: One file's final time: {row key (its text cells: a patch or field name, "" if none): {column: value}};
-#: a value is a tuple: one number, or a vector's components.
-Table = dict[str, dict[str, tuple[float, ...]]]
 
 
 def function_object_differences(ours: Path, theirs: Path, label: str = "own") -> tuple[dict[str, float],
@@ -240,103 +221,10 @@ def _layout(table: Table) -> dict[str, list[str]]:
 def _table_differences(key: str, ours: Table, theirs: Table) -> dict[str, float]:
     values = {}
     for row, columns in theirs.items():
-        magnitudes = [float(np.linalg.norm(v)) for v in (*columns.values(), *ours[row].values())]
-        scale = SCALE_FLOOR * max((m for m in magnitudes if math.isfinite(m)), default=0.0)
+        scale = row_scale([*columns.values(), *ours[row].values()])
         for column, reference in columns.items():
-            name = f"{key} [{row}] {column}" if row else f"{key} {column}"
-            values[name] = relative_difference(ours[row][column], reference, scale)
+            values[quantity_name(key, row, column)] = relative_difference(ours[row][column], reference, scale)
     return values
-
-
-def relative_difference(value: Sequence[float] | float, reference: Sequence[float] | float,
-                        scale: float = 0.0) -> float:
-    """``|value - reference| / max(|reference|, scale)`` (vectors: their norms); 0 for equal values (also
-    two zeros, two NaNs), inf when only one is finite or the denominator is 0."""
-    a, b = np.asarray(value, dtype=np.float64), np.asarray(reference, dtype=np.float64)
-    if np.array_equal(a, b, equal_nan=True):
-        return 0.0
-    denominator = max(float(np.linalg.norm(b)), scale)
-    if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))) or denominator == 0:
-        return math.inf
-    return float(np.linalg.norm(a - b)) / denominator
-
-
-def time_series(case: Path) -> dict[str, Path]:
-    """{``<object>/<file>``: file} of the case's function-object output (``postProcessing/<object>/
-    <startTime>/<file>``), results only (not NOT_RESULTS). A restart starts a new start-time directory,
-    so the latest holding a file is the one with its final values."""
-    root = case / POST_PROCESSING
-    latest: dict[str, tuple[float, Path]] = {}
-    for path in sorted(root.rglob("*")) if root.is_dir() else ():
-        if not path.is_file() or path.name in NOT_RESULTS:
-            continue
-        parts = path.relative_to(root).parts
-        at = max((i for i, part in enumerate(parts[:-1]) if _number(part) is not None), default=None)
-        start = -math.inf if at is None else float(parts[at])
-        key = "/".join(part for i, part in enumerate(parts) if i != at)
-        if key not in latest or start >= latest[key][0]:
-            latest[key] = (start, path)
-    return {key: path for key, (_, path) in latest.items()}
-
-
-def final_rows(path: Path) -> Table | None:
-    """The rows of the file's last time (several for per-patch or per-field output; of repeated ones the
-    last); None if it is not a time series: no ``# Time`` header, or a row that does not start with a
-    time (VTK, binary or sampled-set files)."""
-    try:
-        lines = path.read_text().splitlines()
-    except (OSError, UnicodeDecodeError):
-        return None
-    headers = [_CELL.findall(line.lstrip("#")) for line in lines if line.startswith("#")]
-    rows = [_CELL.findall(line) for line in lines if line.strip() and not line.startswith("#")]
-    times = [_number(row[0]) for row in rows]
-    if not rows or None in times or not any(h[:1] and h[0].lower() == "time" for h in headers):
-        return None
-    table: Table = {}
-    for row in (row for row, time in zip(rows, times, strict=True) if time == times[-1]):
-        # the column names: the last header line with one name per cell (probes name them on a
-        # "# Probe 0 1" line above "# Time"), else the cells' positions
-        names = next((h[1:] for h in reversed(headers) if len(h) == len(row)),
-                     [f"column {i}" for i in range(1, len(row))])
-        key, values = _row_values(row[1:], names)
-        table[key] = values
-    return table
-
-
-def _row_values(cells: Sequence[str], names: Sequence[str]) -> tuple[str, dict[str, tuple[float, ...]]]:
-    """(the row's key: its text cells, {column: value}); a vector cell is one value, its components."""
-    text: list[str] = []
-    values: dict[str, tuple[float, ...]] = {}
-    for cell, name in zip(cells, names, strict=True):
-        numbers = _numbers(cell)
-        if numbers is None:
-            text.append(cell)
-        elif name.startswith(DISCRETE_COLUMNS):
-            continue
-        else:
-            values[_vector_name(name)] = tuple(numbers)
-    return " ".join(text), values
-
-
-def _vector_name(name: str) -> str:
-    """A column's name; a vector's named by its components, "(total_x total_y total_z)", is "total"."""
-    inner = name[1:-1].split() if name.startswith("(") and name.endswith(")") else []
-    return inner[0].rsplit("_", 1)[0] if inner else name
-
-
-def _numbers(cell: str) -> list[float] | None:
-    inner = cell[1:-1] if cell.startswith("(") and cell.endswith(")") else cell
-    try:
-        return [float(token) for token in inner.split()]
-    except ValueError:
-        return None
-
-
-def _number(text: str) -> float | None:
-    try:
-        return float(text)
-    except ValueError:
-        return None
 
 
 def summary_line(label: str, agreement: Mapping[str, Any]) -> str:

@@ -1,0 +1,187 @@
+"""A case's function-object results: the time series under ``postProcessing/``, read whole or as they grow.
+
+Internal to foam_bridge (its users import from ``foam_bridge`` itself); names here may change.
+
+A time series is a file ``postProcessing/<object>/<startTime>/<file>`` whose rows start with a time and
+whose header has a ``# Time`` line (forces, coefficients, probes, fieldMinMax, surfaceFieldValue...). Each
+value is named ``<object>/<file> [row] column`` (``[row]`` only where a file has several rows per time,
+keyed by their text cells: a patch or field name); a vector is one value, its components. Left out: files
+that hold no result of the run (NOT_RESULTS: residuals, timing), discrete columns (DISCRETE_COLUMNS: where a
+minimum sits), files that are not time series (VTK, sampled sets). A value is compared with another as
+``|a - b| / max(|b|, SCALE_FLOOR x the row's largest |value|)``: the floor keeps noise next to its row (a
+side force of 1e-24 in a 2-D case) from turning round-off into a huge relative difference.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from foam_bridge._export import POST_PROCESSING
+
+__all__ = ["DISCRETE_COLUMNS", "NOT_RESULTS", "SCALE_FLOOR", "FunctionObjectTable", "Table", "TableReader",
+           "final_rows", "quantity_name", "relative_difference", "row_scale", "time_series"]
+
+#: A function-object value is measured against at least this fraction of its row's largest |value|.
+SCALE_FLOOR = 1e-3
+#: Function-object files that hold no result of the run: residuals and timing differ by construction.
+NOT_RESULTS = ("solverInfo.dat", "residuals.dat", "timeInfo.dat", "time.dat")
+#: Columns that are not continuous in the solution: where a minimum or maximum sits (a cell centre, which
+#: jumps to a neighbouring cell on a near tie) and which processor holds it.
+DISCRETE_COLUMNS = ("location(", "processor")
+#: A cell of a function object's table: a word with an optional parenthesised tail, or a parenthesised
+#: group (a vector); "location(min)" and "(1 2 3)" are one cell each.
+_CELL = re.compile(r"[^\s()]*\([^()]*\)|[^\s()]+")
+
+#: One file's rows at one time: {row key (its text cells: a patch or field name, "" if none): {column:
+#: value}}; a value is a tuple: one number, or a vector's components.
+Table = dict[str, dict[str, tuple[float, ...]]]
+FunctionObjectTable = Table  # the package's name for it
+
+
+def quantity_name(key: str, row: str, column: str) -> str:
+    """``<object>/<file> [row] column``, as solve's agreement and the answer monitor name a value."""
+    return f"{key} [{row}] {column}" if row else f"{key} {column}"
+
+
+def row_scale(columns: Sequence[Sequence[float]]) -> float:
+    """The scale floor of a row: SCALE_FLOOR x its largest finite |value|."""
+    magnitudes = [float(np.linalg.norm(v)) for v in columns]
+    return SCALE_FLOOR * max((m for m in magnitudes if math.isfinite(m)), default=0.0)
+
+
+def relative_difference(value: Sequence[float] | float, reference: Sequence[float] | float,
+                        scale: float = 0.0) -> float:
+    """``|value - reference| / max(|reference|, scale)`` (vectors: their norms); 0 for equal values (also
+    two zeros, two NaNs), inf when only one is finite or the denominator is 0."""
+    a, b = np.asarray(value, dtype=np.float64), np.asarray(reference, dtype=np.float64)
+    if np.array_equal(a, b, equal_nan=True):
+        return 0.0
+    denominator = max(float(np.linalg.norm(b)), scale)
+    if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))) or denominator == 0:
+        return math.inf
+    return float(np.linalg.norm(a - b)) / denominator
+
+
+def time_series(case: Path) -> dict[str, Path]:
+    """{``<object>/<file>``: file} of the case's function-object output (``postProcessing/<object>/
+    <startTime>/<file>``), results only (not NOT_RESULTS). A restart starts a new start-time directory,
+    so the latest holding a file is the one with its final values."""
+    root = case / POST_PROCESSING
+    latest: dict[str, tuple[float, Path]] = {}
+    for path in sorted(root.rglob("*")) if root.is_dir() else ():
+        if not path.is_file() or path.name in NOT_RESULTS:
+            continue
+        parts = path.relative_to(root).parts
+        at = max((i for i, part in enumerate(parts[:-1]) if _number(part) is not None), default=None)
+        start = -math.inf if at is None else float(parts[at])
+        key = "/".join(part for i, part in enumerate(parts) if i != at)
+        if key not in latest or start >= latest[key][0]:
+            latest[key] = (start, path)
+    return {key: path for key, (_, path) in latest.items()}
+
+
+def final_rows(path: Path) -> Table | None:
+    """The rows of the file's last time (several for per-patch or per-field output; of repeated ones the
+    last); None if it is not a time series: no ``# Time`` header, or a row that does not start with a
+    time (VTK, binary or sampled-set files)."""
+    try:
+        lines = path.read_text().splitlines()
+    except (OSError, UnicodeDecodeError):
+        return None
+    reader = TableReader(path)
+    rows = reader.parse(lines)
+    if rows is None or not rows:
+        return None
+    last = rows[-1][0]
+    return {key: values for time, key, values in rows if time == last}
+
+
+class TableReader:
+    """A time series read as it grows: :meth:`read` returns the rows completed since the last call (a
+    line without its newline is left for the next); None once the file shows it is not a time series."""
+
+    def __init__(self, path: Path) -> None:
+        self.path, self._offset, self._headers = path, 0, []
+        self._failed = False
+
+    def read(self) -> list[tuple[float, str, dict[str, tuple[float, ...]]]] | None:
+        if self._failed:
+            return None
+        try:
+            with open(self.path, "rb") as file:
+                file.seek(self._offset)
+                data = file.read()
+        except OSError:
+            return []
+        complete = data[:data.rfind(b"\n") + 1]
+        self._offset += len(complete)
+        try:
+            lines = complete.decode().splitlines()
+        except UnicodeDecodeError:
+            self._failed = True
+            return None
+        rows = self.parse(lines)
+        self._failed = rows is None
+        return rows
+
+    def parse(self, lines: Sequence[str]) -> list[tuple[float, str, dict[str, tuple[float, ...]]]] | None:
+        """The rows of ``lines`` (the headers met so far name their columns), in order; None if a row does
+        not start with a time or no ``# Time`` header came before it."""
+        rows = []
+        for line in lines:
+            if line.startswith("#"):
+                self._headers.append(_CELL.findall(line.lstrip("#")))
+                continue
+            if not line.strip():
+                continue
+            cells = _CELL.findall(line)
+            time = _number(cells[0])
+            if time is None or not any(h[:1] and h[0].lower() == "time" for h in self._headers):
+                return None
+            # the column names: the last header line with one name per cell (probes name them on a
+            # "# Probe 0 1" line above "# Time"), else the cells' positions
+            names = next((h[1:] for h in reversed(self._headers) if len(h) == len(cells)),
+                         [f"column {i}" for i in range(1, len(cells))])
+            rows.append((time, *_row_values(cells[1:], names)))
+        return rows
+
+
+def _row_values(cells: Sequence[str], names: Sequence[str]) -> tuple[str, dict[str, tuple[float, ...]]]:
+    """(the row's key: its text cells, {column: value}); a vector cell is one value, its components."""
+    text: list[str] = []
+    values: dict[str, tuple[float, ...]] = {}
+    for cell, name in zip(cells, names, strict=True):
+        numbers = _numbers(cell)
+        if numbers is None:
+            text.append(cell)
+        elif name.startswith(DISCRETE_COLUMNS):
+            continue
+        else:
+            values[_vector_name(name)] = tuple(numbers)
+    return " ".join(text), values
+
+
+def _vector_name(name: str) -> str:
+    """A column's name; a vector's named by its components, "(total_x total_y total_z)", is "total"."""
+    inner = name[1:-1].split() if name.startswith("(") and name.endswith(")") else []
+    return inner[0].rsplit("_", 1)[0] if inner else name
+
+
+def _numbers(cell: str) -> list[float] | None:
+    inner = cell[1:-1] if cell.startswith("(") and cell.endswith(")") else cell
+    try:
+        return [float(token) for token in inner.split()]
+    except ValueError:
+        return None
+
+
+def _number(text: str) -> float | None:
+    try:
+        return float(text)
+    except ValueError:
+        return None

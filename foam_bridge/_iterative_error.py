@@ -1,0 +1,225 @@
+"""How far a run's answer still is from where it would settle: one monitored quantity's iterative error.
+
+Internal to foam_bridge (its users import from ``foam_bridge`` itself); names here may change.
+
+A quantity is a field the case solves (all its cells and components) or one value of a function object
+(a force, a probe, a surface average). Its history is sampled as the run goes (foam_bridge._answer_monitor)
+and :func:`estimate` says, at every sample, which model holds and the relative error it implies:
+
+- **converging**: the differences between samples shrink geometrically. The error left is what the future
+  differences add up to, extrapolated from the measured contraction rate rho per sample: ``d rho / (1 -
+  rho)`` with d the latest difference. The last difference alone understates the error by ``rho / (1 -
+  rho)``, which is large exactly when convergence is slow (Eca, Kerkvliet & Toxopeus). The rate comes from
+  the two halves of a window of the latest samples (their geometric means), not from two samples, so that a
+  small cycle riding on the decay does not fake a rate.
+- **oscillating** (a period is found) or **wandering** (none): the window's second half has the mean of its
+  first within its own half-range (no trend beyond the fluctuation), or its differences do not decay. The
+  answer is then the window's mean and its error half the window's range (ITTC 7.5-03-01-01's iterative
+  uncertainty); a cycle shorter than the sample interval shows in the differences, whose half is a floor
+  of the half-range. A converging history that reaches a floor (the answer wanders at a level) is
+  judged so once the floor holds the window's second half: extrapolating its shallowing decay would
+  overstate the error many times.
+- **converged**: the samples no longer differ at all (round-off).
+
+All errors are relative: a field's to the L2 norm of its latest sample (over the cells, unweighted, as
+foam_bridge._fields.relative_l2), a value's to ``max(|value|, floor)`` with the floor the function object's
+scale floor (solve's agreement: a side force of 1e-24 is measured against the row's drag, not itself).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["CONVERGED", "CONVERGING", "MODELS", "OSCILLATING", "TOO_EARLY", "WANDERING", "Estimate",
+           "QuantityTrack", "cycle_floor", "estimate", "steady_window"]
+
+CONVERGING = "converging"
+OSCILLATING = "oscillating"
+WANDERING = "wandering"
+CONVERGED = "converged"
+TOO_EARLY = "too early"
+MODELS = (CONVERGING, OSCILLATING, WANDERING, CONVERGED, TOO_EARLY)
+
+#: Samples a quantity needs before any estimate (a rate from fewer is a guess).
+MIN_SAMPLES = 8
+#: The window the model is judged on: the latest third of the run, at least this many samples.
+WINDOW_FRACTION, MIN_WINDOW = 1.0 / 3.0, 8
+#: Converging when the drift between the window's blocks' means shrinks by at least this factor from one
+#: block to the next (and the first drift stands out of the latest block's fluctuation).
+CONTRACTION = 0.9
+#: The extrapolated error is multiplied by this: the measured rate is a window's average, and a decay that
+#: slows down later (a second, slower mode taking over) is under-predicted by it.
+SAFETY = 3.0
+#: Relative differences at or below this are round-off: the quantity no longer changes.
+ROUND_OFF = 1e-13
+#: A period is a lag whose autocorrelation over the window is at least this.
+PERIOD_CORRELATION = 0.5
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """One quantity's state at a sample: the model that holds, the relative ``error`` of the latest sample
+    from where the run settles (inf while too early), the ``period`` in iterations where one is found, and
+    the window's ``half_range`` (relative) and length in iterations."""
+
+    model: str
+    error: float
+    period: int | None = None
+    half_range: float = 0.0
+    window: int = 0
+    rate: float | None = None  # contraction per iteration, where the converging model holds
+
+    def as_dict(self) -> dict[str, object]:
+        data: dict[str, object] = {"model": self.model, "error": _finite(self.error),
+                                   "half_range": _finite(self.half_range), "window": self.window}
+        if self.period is not None:
+            data["period"] = self.period
+        if self.rate is not None:
+            data["rate_per_iteration"] = self.rate
+        return data
+
+
+def _finite(value: float) -> float | None:
+    return float(value) if math.isfinite(value) else None
+
+
+@dataclass
+class QuantityTrack:
+    """A quantity's history: every sample's iteration and relative difference from the sample before, and
+    snapshots of its values, thinned (every other one dropped) whenever more than ``max_snapshots`` are
+    kept, so that they cover the whole run at a coarser and coarser stride."""
+
+    name: str
+    max_snapshots: int = 256
+    iterations: list[int] = field(default_factory=list)
+    differences: list[float] = field(default_factory=list)  # [0] is nan: no sample before the first
+    snapshots: list[tuple[int, np.ndarray]] = field(default_factory=list)
+    scale: float = 0.0
+    _stride: int = 1
+    _last: np.ndarray | None = None
+
+    def add(self, iteration: int, value: np.ndarray, floor: float = 0.0) -> None:
+        """One sample; ``floor``: the smallest magnitude its relative errors are measured against."""
+        value = np.asarray(value, dtype=np.float64)
+        self.scale = max(float(np.linalg.norm(value)), floor)
+        if self._last is None or self._last.shape != value.shape:
+            difference = math.nan
+        else:
+            difference = _relative(float(np.linalg.norm(value - self._last)), self.scale)
+        self.iterations.append(int(iteration))
+        self.differences.append(difference)
+        self._last = value
+        if (len(self.iterations) - 1) % self._stride == 0:
+            self.snapshots.append((int(iteration), value.copy()))
+        if len(self.snapshots) > self.max_snapshots:
+            self.snapshots = self.snapshots[::2]
+            self._stride *= 2
+
+    @property
+    def latest(self) -> np.ndarray | None:
+        return self._last
+
+
+def _relative(norm: float, scale: float) -> float:
+    if norm == 0:
+        return 0.0
+    return norm / scale if scale > 0 else math.inf
+
+
+def estimate(track: QuantityTrack) -> Estimate:
+    """The model that holds for ``track`` now and the error of its latest sample (see the module
+    docstring)."""
+    d = np.asarray(track.differences[1:], dtype=np.float64)
+    its = np.asarray(track.iterations[1:], dtype=np.int64)
+    if len(d) < MIN_SAMPLES or not np.all(np.isfinite(d)):
+        return Estimate(TOO_EARLY, math.inf)
+    count = max(MIN_WINDOW, int(math.ceil(WINDOW_FRACTION * len(d))))
+    d, its = d[-count:], its[-count:]
+    window = int(track.iterations[-1] - its[0]) + 1
+    if float(d.max()) <= ROUND_OFF:
+        return Estimate(CONVERGED, float(d.max()), window=window)
+    half = _half_range(track, window, d)
+    blocks = _block_drift(track, window)
+    if blocks is not None:
+        ratio, step = blocks  # per block: the contraction and the latest drift
+        # a cycle shorter than the sample interval hides from the block means and the thinned snapshots;
+        # every one of the latest differences between samples holds it
+        shake = cycle_floor(d)
+        ahead = SAFETY * step * ratio / (1.0 - ratio)
+        if ahead >= shake:  # else the fluctuation dominates: the range model below
+            return Estimate(CONVERGING, ahead + shake, window=window, rate=ratio ** (3.0 / window),
+                            half_range=half)
+    period = _period(track, window)
+    return Estimate(OSCILLATING if period else WANDERING, half, period, half, window)
+
+
+def cycle_floor(d: np.ndarray) -> float:
+    """Half the smallest of the latest MIN_WINDOW differences between samples: a cycle faster than the
+    sample interval (a two-iteration cycle, sampled every odd number of iterations) keeps them all at its
+    full swing, a converging quantity does not."""
+    return 0.5 * float(np.min(d[-MIN_WINDOW:]))
+
+
+def _block_drift(track: QuantityTrack, window: int) -> tuple[float, float] | None:
+    """Aitken's extrapolation on the means of the window's three blocks of snapshots (means, so that a
+    cycle or a wander on top of the trend averages out): (the contraction, the drift between the last two
+    blocks' means, relative); None where the means do not
+    contract by at least CONTRACTION per block or their first drift does not stand out of the latest
+    block's fluctuation (the range model then holds). The contraction is per block."""
+    values = steady_window(track, window)
+    if len(values) < 6:
+        return None
+    thirds = np.array_split(np.stack(values), 3)
+    means = [block.mean(axis=0) for block in thirds]
+    first = _relative(float(np.linalg.norm(means[1] - means[0])), track.scale)
+    second = _relative(float(np.linalg.norm(means[2] - means[1])), track.scale)
+    shake = _relative(max(float(np.linalg.norm(v - means[2])) for v in thirds[2]), track.scale)
+    if first <= shake or second >= CONTRACTION * first:
+        return None
+    return max(second / first, ROUND_OFF), second
+
+
+def _half_range(track: QuantityTrack, window: int, d: np.ndarray) -> float:
+    """Half the range of the snapshots in the latest ``window`` iterations (their largest distance from
+    their mean), or half the largest difference between samples there (a cycle shorter than the sample
+    interval), whichever is larger; relative to the quantity's scale."""
+    values = steady_window(track, window)
+    spread = 0.0
+    if len(values) >= 2:
+        stack = np.stack(values)
+        mean = stack.mean(axis=0)
+        spread = max(float(np.linalg.norm(v - mean)) for v in stack)
+    return max(_relative(spread, track.scale), 0.5 * float(d.max()))
+
+
+def steady_window(track: QuantityTrack, window: int, end: int | None = None) -> list[np.ndarray]:
+    """The snapshots of ``track`` in the ``window`` iterations up to ``end`` (default its latest)."""
+    last = track.iterations[-1] if end is None else end
+    return [value for it, value in track.snapshots if last - window < it <= last]
+
+
+def _period(track: QuantityTrack, window: int) -> int | None:
+    """The period, in iterations, of a quantity sampled at a regular stride over ``window``: the first lag
+    whose autocorrelation is a local maximum of at least PERIOD_CORRELATION; None where there is none (a
+    field sampled less often than it cycles shows no period: its half-range still holds the cycle)."""
+    points = [(it, v) for it, v in track.snapshots if track.iterations[-1] - window < it]
+    if len(points) < 6:
+        return None
+    steps = np.diff([it for it, _ in points])
+    if np.any(steps != steps[0]):
+        return None
+    series = np.asarray([float(np.ravel(v)[0]) if np.size(v) == 1 else float(np.linalg.norm(v))
+                         for _, v in points])
+    series = series - series.mean()
+    power = float(series @ series)
+    if power == 0:
+        return None
+    correlations = [float(series[:-lag] @ series[lag:]) / power for lag in range(1, len(series) // 2)]
+    for index in range(1, len(correlations) - 1):
+        if correlations[index] >= PERIOD_CORRELATION and correlations[index] >= correlations[index - 1] \
+                and correlations[index] >= correlations[index + 1]:
+            return int((index + 1) * steps[0])
+    return None
