@@ -103,8 +103,9 @@ def test_the_table_and_plot_hold_each_case_and_the_own_run_with_compare(tmp_path
     write_table(tmp_path, rows, compare=True)
     write_plot(tmp_path, rows, compare=True)
     table = list(csv.DictReader((tmp_path / "campaign.csv").open()))
-    assert list(table[0]) == ["case", "out", "status", "iterations", "wall_s", "own_iterations",
-                              "ratio_iterations", "own_wall_s", "ratio_wall", "controller", "cause"]
+    assert list(table[0]) == ["case", "out", "status", "iterations", "wall_s", "iterative_error",
+                              "own_iterations", "ratio_iterations", "own_wall_s", "ratio_wall", "controller",
+                              "cause"]
     assert [(r["out"], r["status"], r["ratio_iterations"]) for r in table] == [
         ("a.solved", "converged", "0.75"), ("b.solved", "not converged", "1.5"), ("c.solved", FAILED, "")]
     assert table[1]["cause"] == "reached the budget" and table[2]["cause"].endswith("has no residualControl")
@@ -113,6 +114,19 @@ def test_the_table_and_plot_hold_each_case_and_the_own_run_with_compare(tmp_path
     assert finished_line(rows[0]) == line
     write_table(tmp_path, rows[:1], compare=False)  # without --compare, no own columns
     assert "own_iterations" not in (tmp_path / "campaign.csv").read_text()
+
+
+def test_a_case_stopped_on_its_answer_has_its_verdict_and_error_in_the_table(tmp_path: Path) -> None:
+    """Settled counts as an answer (no cause); oscillating does not; the worst estimated error is shown."""
+    rows = []
+    for outcome in ("settled", "oscillating"):
+        data = _report(False)
+        data["result"].update(outcome=outcome, iterative_error={"U": 2e-4, "p": 8e-4, "probe/0/p": None})
+        rows.append(row_of(Path(f"/c/{outcome}"), tmp_path / f"{outcome}.solved", data))
+    assert [(row["status"], row["iterative_error"], row["cause"]) for row in rows] == [
+        ("settled", "8.0e-04", ""), ("oscillating", "8.0e-04", "reached the budget")]
+    line = "settled.solved: settled after 150 iterations, 3.0 s, iterative error 8.0e-04"
+    assert finished_line(rows[0]) == line
 
 
 def _cli(*args: str, cwd: Path, stderr: Path | None = None) -> subprocess.Popen:

@@ -16,7 +16,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from foam_bridge import CaseError, OpenFOAMNotFoundError
+from foam_bridge import DEFAULT_TOLERANCE, CaseError, OpenFOAMNotFoundError
 from jaxsimrl.apps.foam.cli.grid_foam import check_factor, relaxation_factor
 from jaxsimrl.apps.foam.cli.solve_campaign import add_campaign_arguments, is_campaign, run_campaign_command
 from jaxsimrl.apps.foam.solve import solve_case
@@ -96,6 +96,16 @@ def register(subparsers: Any) -> None:
                         "OUT holds the case reconstructed; 1: serial")
     parser.add_argument("--keep-decomposed", action="store_true",
                         help="with --np: also leave the ranks' processor* directories in OUT")
+    parser.add_argument("--settle", type=settle_tolerance, default=DEFAULT_TOLERANCE, metavar="TOL",
+                        help="stop the case's own run once its answer has settled: every solved field and "
+                        "every value of the case's function objects within TOL (a relative error) of "
+                        "where the run would settle, as estimated from its history, or oscillating about "
+                        f"a mean that no longer moves (default {DEFAULT_TOLERANCE:g}; 'off': the plain "
+                        "run, ended only by its criterion, its function objects or its budget). Never more "
+                        "iterations than your own run; where it stops sooner, the answer is within TOL of "
+                        "where that run would settle (docs/solve.md); the monitor costs a little solver "
+                        "time on top. Exit code 0 for converged or settled, 1 for oscillating or out of "
+                        "budget")
     parser.add_argument("--quiet", action="store_true", help="print only the summary")
     add_campaign_arguments(parser)
     parser.set_defaults(func=run_solve)
@@ -107,6 +117,19 @@ def residual_spec(text: str) -> Any:
         return parse_residual(text)
     except ValueError as err:
         raise argparse.ArgumentTypeError(str(err)) from None
+
+
+def settle_tolerance(text: str) -> float | None:
+    """argparse type of --settle: a relative tolerance in (0, 1), or "off" (None)."""
+    if text.strip().lower() == "off":
+        return None
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a tolerance in (0, 1) or 'off', got {text!r}") from None
+    if not 0 < value < 1:
+        raise argparse.ArgumentTypeError(f"expected a tolerance in (0, 1) or 'off', got {text!r}")
+    return value
 
 
 def time_value(text: str) -> float:
@@ -146,7 +169,7 @@ def solve_options(args: argparse.Namespace) -> dict[str, Any]:
             "step_timeout_s": args.step_timeout, "inlet_patch": args.inlet_patch, "residual": args.residual,
             "from_time": args.from_time, "rule": rule_of(args),
             "ranks": args.ranks, "keep_decomposed": args.keep_decomposed, "spread": args.spread,
-            "solves": args.solves}
+            "solves": args.solves, "settle": args.settle}
 
 
 def rule_of(args: argparse.Namespace) -> str | None:
@@ -178,4 +201,4 @@ def run_solve(args: argparse.Namespace) -> int:
     print(report.summary())
     print(f"wrote {out} (the case, log.simpleFoam, solve.json, solve.png)")
     args.skip_teardown = True  # jaxsimrl.cli.main.entry
-    return 0 if report.converged else 1
+    return 0 if report.succeeded else 1

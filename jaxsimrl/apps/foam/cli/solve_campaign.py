@@ -16,7 +16,13 @@ from typing import Any
 
 from foam_bridge import BACKENDS, ClusterError, OpenFOAMNotFoundError, PoolLostError, find_openfoam
 from jaxsimrl.apps.foam.solve.campaign import find_cases, is_case, plan_campaign, run_campaign
-from jaxsimrl.apps.foam.solve.campaign_table import CAMPAIGN_CSV, CAMPAIGN_PNG, CONVERGED, finished_line
+from jaxsimrl.apps.foam.solve.campaign_table import (
+    CAMPAIGN_CSV,
+    CAMPAIGN_PNG,
+    CONVERGED,
+    SETTLED,
+    finished_line,
+)
 from jaxsimrl.cli.errors import fail, positive_int
 from jaxsimrl.cli.progress import RunProgress
 
@@ -54,8 +60,9 @@ def is_campaign(args: argparse.Namespace) -> bool:
 
 
 def run_campaign_command(args: argparse.Namespace, options: dict[str, Any]) -> int:
-    """Plan, check and run the campaign; print its table's path. Exit 0 when every case converged, 1
-    otherwise (a case not converged or failed, or the pool lost), 2 for bad input."""
+    """Plan, check and run the campaign; print its table's path. Exit 0 when every case converged or
+    settled, 1 otherwise (a case oscillating, not converged or failed, or the pool lost), 2 for bad
+    input."""
     backend = args.backend or "local"
     if args.ray_address is not None and backend != "ray":
         fail("--ray-address needs --backend ray")
@@ -80,6 +87,8 @@ def run_campaign_command(args: argparse.Namespace, options: dict[str, Any]) -> i
                              f"with --resume to solve the others\n")
             return 1
     converged = sum(row["status"] == CONVERGED for row in rows)
-    print(f"{converged} of {len(jobs)} cases converged; wrote {Path(out) / CAMPAIGN_CSV}, "
-          f"{Path(out) / CAMPAIGN_PNG} and a NAME.solved directory per case")
-    return 0 if converged == len(jobs) else 1
+    settled = sum(row["status"] == SETTLED for row in rows)
+    print(f"{converged} of {len(jobs)} cases converged" + (f", {settled} settled" if settled else "")
+          + f"; wrote {Path(out) / CAMPAIGN_CSV}, {Path(out) / CAMPAIGN_PNG} and a NAME.solved directory "
+          "per case")
+    return 0 if converged + settled == len(jobs) else 1

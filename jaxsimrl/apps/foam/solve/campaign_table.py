@@ -21,21 +21,28 @@ from jaxsimrl.runs.atomic import atomic_write_bytes, atomic_write_text
 CAMPAIGN_CSV = "campaign.csv"
 CAMPAIGN_PNG = "campaign.png"
 #: Columns of campaign.csv; the own run's (``OWN_COLUMNS``) only with --compare.
-COLUMNS = ("case", "out", "status", "iterations", "wall_s", "controller", "cause")
+COLUMNS = ("case", "out", "status", "iterations", "wall_s", "iterative_error", "controller", "cause")
 OWN_COLUMNS = ("own_iterations", "ratio_iterations", "own_wall_s", "ratio_wall")
-#: status of a case whose solve ended with a result / raised (bad case, solver failure, lost workers).
+#: status of a case whose solve ended with a result / raised (bad case, solver failure, lost workers);
+#: SETTLED and OSCILLATING: its own run stopped on its answer (jaxsimrl.apps.foam.solve.answer).
 CONVERGED, NOT_CONVERGED, FAILED = "converged", "not converged", "failed"
+SETTLED, OSCILLATING = "settled", "oscillating"
+#: Statuses whose answer a user can take (the campaign's exit code 0 needs every case among them).
+SUCCEEDED = (CONVERGED, SETTLED)
 
 
 def row_of(case: Path, out: Path, data: Mapping[str, Any]) -> dict[str, Any]:
     """The row of a finished solve from its solve.json ``data`` (status "complete")."""
     result = data["result"]
-    row: dict[str, Any] = {"case": str(case), "out": out.name,
-                           "status": CONVERGED if result["converged"] else NOT_CONVERGED,
+    status = CONVERGED if result["converged"] else NOT_CONVERGED
+    status = result["outcome"] if result.get("outcome") in (SETTLED, OSCILLATING) else status
+    errors = [v for v in (result.get("iterative_error") or {}).values() if v is not None]
+    row: dict[str, Any] = {"case": str(case), "out": out.name, "status": status,
                            "iterations": int(result["iterations"]),
                            "wall_s": round(float(result["wall_time_s"]), 2),
+                           "iterative_error": f"{max(errors):.1e}" if errors else "",
                            "controller": controller_label(data.get("controller") or {}),
-                           "cause": "" if result["converged"] else str(result.get("cause") or "")}
+                           "cause": "" if status in SUCCEEDED else str(result.get("cause") or "")}
     own = (data.get("compare") or {}).get("own")
     if own is not None:
         row.update(own_iterations=int(own["iterations"]), ratio_iterations=_rounded(own["ratio_iterations"]),
@@ -66,7 +73,7 @@ def _rounded(value: Any) -> Any:
 
 def write_table(out: Path, rows: Sequence[Mapping[str, Any]], compare: bool) -> None:
     """OUT/campaign.csv, rewritten whole and atomically: a reader (or a kill -9) never sees half a table."""
-    columns = (*COLUMNS[:5], *(OWN_COLUMNS if compare else ()), *COLUMNS[5:])
+    columns = (*COLUMNS[:6], *(OWN_COLUMNS if compare else ()), *COLUMNS[6:])
     buffer = io.StringIO()
     writer = csv.DictWriter(buffer, fieldnames=columns, extrasaction="ignore", lineterminator="\n")
     writer.writeheader()
@@ -119,6 +126,8 @@ def finished_line(row: Mapping[str, Any]) -> str:
     if row["status"] == FAILED:
         return f"{head}: {row['cause']}"
     text = f"{head} after {row['iterations']} iterations, {float(row['wall_s']):.1f} s"
+    if row.get("iterative_error"):
+        text += f", iterative error {row['iterative_error']}"
     if row.get("own_iterations", "") != "":
         text += f"; own {row['own_iterations']} iterations (x{row['ratio_iterations']})"
     return text + (f"; {row['cause']}" if row["cause"] else "")

@@ -19,11 +19,14 @@ from pathlib import Path
 from typing import Any
 
 from foam_bridge import (
+    AnswerMonitor,
     LogParser,
+    SettleRule,
     copy_case,
     decompose,
     find_openfoam,
     reconstruct,
+    restore_case,
     run_application,
     run_to_end,
 )
@@ -49,17 +52,32 @@ class OwnRun:
     history: list[dict[str, float]] = field(default_factory=list)
     error: str = ""
     stopped_by: str | None = None
+    answer: dict[str, Any] | None = None  # the answer monitor's report (settle runs only)
+
+    @property
+    def settled(self) -> str | None:
+        """"settled" or "oscillating" where the answer monitor stopped the run, else None."""
+        return None if self.answer is None else self.answer.get("outcome")
+
+
+@dataclass(frozen=True)
+class Settle:
+    """A run stopped on its answer (foam_bridge's answer monitor): the tolerance and the fields it samples."""
+
+    tolerance: float
+    fields: tuple[str, ...]
 
 
 def run_own(source: Path, dest: Path, label: str, timeout_s: float, factors: Sequence[float] | None = None,
             flat: bool = False, criterion: Mapping[str, float] | None = None, start_time: int = 0,
-            ranks: int = 1) -> OwnRun:
+            ranks: int = 1, settle: Settle | None = None) -> OwnRun:
     """Copy ``source`` to ``dest`` (mesh it if needed) and run simpleFoam once to its end; ``factors``:
     constant (alpha_u, alpha_p[, turbulence]) merged into its relaxationFactors (else its own);
     ``criterion``: its SIMPLE.residualControl instead of its own (solve's ``--residual``);
     ``start_time``: the time directory it starts from (``startFrom latestTime`` with only 0 and that one
     copied), iterations counted from there; ``ranks`` > 1: decomposed, run under mpirun and its latest
-    fields reconstructed, as the user would run it."""
+    fields reconstructed, as the user would run it; ``settle``: the answer monitor watches the run and
+    stops it once its answer has settled (foam_bridge's AnswerMonitor; None: the plain run)."""
     openfoam = find_openfoam()
     copy_case(source, dest, start_time=start_time)
     if start_time:
@@ -74,10 +92,17 @@ def run_own(source: Path, dest: Path, label: str, timeout_s: float, factors: Seq
             out.write("\n// ----- constant factors of jaxsimrl solve --compare-constant -----\n"
                       + constant_relaxation(factors, flat))
     parser = LogParser("", "", start=start_time)
+    monitor = None if settle is None else AnswerMonitor(dest, settle.fields, start_time,
+                                                        SettleRule(settle.tolerance), ranks=ranks)
     try:
+        if monitor is not None:
+            monitor.install()
         if ranks > 1:
             decompose(dest, openfoam, ranks)
-        code, wall = run_to_end(dest, openfoam, parser, timeout_s, ranks)
+        code, wall = run_to_end(dest, openfoam, parser, timeout_s, ranks, _watch(monitor))
+        if monitor is not None:
+            monitor.poll(parser.iteration, ended=True)
+            restore_case(dest, ranks)
         if ranks > 1 and code == 0:
             reconstruct(dest, openfoam)
     except Exception as err:  # noqa: BLE001 - a timeout or a broken case is this run's outcome
@@ -87,7 +112,21 @@ def run_own(source: Path, dest: Path, label: str, timeout_s: float, factors: Seq
     ended = parser.converged_at or parser.stopped_at  # residualControl, or the case's runTimeControl
     return OwnRun(str(dest), label, ended is not None and code == 0, ended or parser.completed, wall,
                   parser.execution_time, code, parser.history, error,
-                  parser.stopped_by if parser.converged_at is None else None)
+                  parser.stopped_by if parser.converged_at is None else None,
+                  None if monitor is None else monitor.report())
+
+
+def _watch(monitor: AnswerMonitor | None) -> Any:
+    """run_to_end's ``watch``: read the monitor's samples as the log grows and stop the run once the
+    verdict says so (None without a monitor: the plain run)."""
+    if monitor is None:
+        return None
+
+    def watch(parser: LogParser) -> None:
+        if monitor.poll(parser.iteration) is not None:
+            monitor.request_stop()
+
+    return watch
 
 
 def constant_relaxation(factors: Sequence[float], flat: bool = False) -> str:

@@ -20,6 +20,7 @@ from typing import Any
 
 from foam_bridge import K_OMEGA_ACTION, LogParser, field_residual
 from jaxsimrl.apps.foam.solve.agreement import spread_line, summary_line
+from jaxsimrl.apps.foam.solve.answer import SETTLED, answer_lines, answer_result, succeeded
 from jaxsimrl.apps.foam.solve.criterion import describe
 from jaxsimrl.runs.atomic import atomic_write_bytes, atomic_write_json
 
@@ -38,6 +39,11 @@ class SolveReport:
         return bool(self.data["result"]["converged"])
 
     @property
+    def succeeded(self) -> bool:
+        """Converged or settled: an answer to take (exit code 0)."""
+        return succeeded(self.data["result"])
+
+    @property
     def iterations(self) -> int:
         return int(self.data["result"]["iterations"])
 
@@ -53,7 +59,7 @@ class SolveReport:
                  f"({_verdict(result)}) "
                  f"after {result['iterations']} iterations, {result['wall_time_s']:.1f} s wall, solver CPU "
                  f"{result['solver_cpu_time_s']:.1f} s; fields from {result['fields_from']}",
-                 *_criterion_line(self.data),
+                 *_criterion_line(self.data), *answer_lines(self.data),
                  f"  overhead beyond the solver's own work: {_percent(result['overhead_fraction'])} of wall "
                  f"time"]
         lines += [f"  {event['reason']}" if event["kind"] == "own settings" else
@@ -74,6 +80,10 @@ class SolveReport:
 def _verdict(result: dict[str, Any]) -> str:
     """Converged and confirmed at a fixed relaxation, converged (by the case's own function object, or
     by the case's own run that replaced the controlled one: nothing was confirmed), or not converged."""
+    if result["outcome"] == SETTLED:
+        return "the answer settled within the tolerance; its criterion NOT met"
+    if result["outcome"] == "oscillating":
+        return "the answer oscillates about a steady mean; its error is half its range"
     if not result["converged"]:
         return "NOT converged"
     return "converged, confirmed" if str(result.get("converged_by")).endswith("confirmed") else "converged"
@@ -156,7 +166,12 @@ def build_report(case: Path, out: Path, controller: Any, cfg: Any, run: Any, res
             "confirmations": (record.confirmations if record is not None else None) or [],
             "residuals": {"controlled": residual_history(parser.history, fields)}}
     if rescue is not None:
-        data["residuals"]["fallback_rerun"] = residual_history(rescue.history, fields)
+        own_label = "own" if run.outcome == "not run" else "fallback_rerun"
+        data["residuals"][own_label] = residual_history(rescue.history, fields)
+        answer = getattr(rescue, "answer", None)
+        result.update(answer_result(answer, converged, rescue.history, dict(cfg.convergence)))
+        if answer is not None:
+            data["answer"] = answer
     data["compare"] = {name: _comparison(other, result) for name, other in comparisons.items()}
     for name, other in comparisons.items():
         data["residuals"][name] = residual_history(other.history, fields)
@@ -204,44 +219,83 @@ def preload_plotting() -> None:
 
 
 def plot_png(data: dict[str, Any]) -> bytes:
-    """Residual histories (log scale) over the factors the controller used, as PNG bytes."""
+    """Residual histories (log scale), then the factors the controller used (where one acted) and the
+    answer monitor's estimated errors (where it watched), as PNG bytes."""
     import io
 
     preload_plotting()
     import matplotlib.pyplot as plt
 
-    figure, (top, bottom) = plt.subplots(2, 1, figsize=(8, 7), sharex=True, height_ratios=(2, 1))
+    answer = (data.get("answer") or {}).get("history")
+    panels = 1 + bool(data["steps"]) + bool(answer)
+    figure, axes = plt.subplots(panels, 1, figsize=(8, 3.5 + 2.2 * panels), sharex=True,
+                                height_ratios=(2, *([1] * (panels - 1))), squeeze=False)
+    top, rest = axes[0][0], [row[0] for row in axes[1:]]
+    _draw_residuals(top, data)
+    if data["steps"]:
+        _draw_factors(rest.pop(0), data)
+    if answer:
+        _draw_answer(rest.pop(0), data["answer"], data["result"])
+    axes[-1][0].set_xlabel("SIMPLE iteration")
+    buffer = io.BytesIO()
+    figure.tight_layout()
+    figure.savefig(buffer, format="png", dpi=90)
+    plt.close(figure)
+    return buffer.getvalue()
+
+
+def _draw_residuals(axis: Any, data: dict[str, Any]) -> None:
     colours = {name: f"C{index}" for index, name in enumerate(data["settings"]["criterion"])}
     for run, curves in data["residuals"].items():
-        style = "-" if run == "controlled" else "--"
+        style = "-" if run in ("controlled", "own") else "--"
         for name, values in curves.items():
             points = [(i + 1, v) for i, v in enumerate(values) if v is not None and v > 0]
             if points:
-                top.semilogy(*zip(*points, strict=True), style, lw=1, color=colours.get(name),
-                             label=f"{name} ({run})")
+                axis.semilogy(*zip(*points, strict=True), style, lw=1, color=colours.get(name),
+                              label=f"{name} ({run})")
     for threshold in data["settings"]["criterion"].values():
-        top.axhline(threshold, color="grey", lw=0.5, ls=":")
-    top.set_ylabel("initial residual")
-    top.legend(fontsize=7, ncol=2)
-    top.set_title(f"jaxsimrl solve: {Path(data['case']).name}")
+        axis.axhline(threshold, color="grey", lw=0.5, ls=":")
+    axis.set_ylabel("initial residual")
+    axis.legend(fontsize=7, ncol=2)
+    axis.set_title(f"jaxsimrl solve: {Path(data['case']).name}")
+
+
+def _draw_factors(axis: Any, data: dict[str, Any]) -> None:
     for index in range(max((len(step["action"]) for step in data["steps"]), default=0)):
         xs, ys = [], []
         for step in data["steps"]:
             xs += [step["from_iteration"], step.get("to_iteration", step["from_iteration"])]
             ys += [step["action"][index]] * 2
         label = ("alpha_u", "alpha_p", "alpha_t")[index] if index < 3 else str(index)
-        bottom.plot(xs, ys, lw=1.2, label=label)
+        axis.plot(xs, ys, lw=1.2, label=label)
     for event in data["fallback"]:
-        bottom.axvline(event["at_iteration"], color="red", lw=0.8, ls="--")
-    bottom.set_xlabel("SIMPLE iteration")
-    bottom.set_ylabel("factor")
-    if data["steps"]:
-        bottom.legend(fontsize=7)
-    buffer = io.BytesIO()
-    figure.tight_layout()
-    figure.savefig(buffer, format="png", dpi=90)
-    plt.close(figure)
-    return buffer.getvalue()
+        axis.axvline(event["at_iteration"], color="red", lw=0.8, ls="--")
+    axis.set_ylabel("factor")
+    axis.legend(fontsize=7)
+
+
+#: Function-object values drawn in solve.png beside the fields: the largest errors at the end.
+DRAWN_VALUES = 6
+
+
+def _draw_answer(axis: Any, answer: dict[str, Any], result: dict[str, Any]) -> None:
+    """Each quantity's estimated error at every check (fields solid, the function-object values with the
+    largest final errors dashed), the tolerance, and where the run stopped."""
+    history = answer["history"]
+    final = {k: v for k, v in (answer.get("iterative_error") or {}).items() if v is not None}
+    fields = [name for name in final if "/" not in name]
+    values = sorted((n for n in final if "/" in n), key=lambda n: -final[n])[:DRAWN_VALUES]
+    for index, name in enumerate([*fields, *values]):
+        points = [(entry["iteration"], entry["errors"].get(name)) for entry in history]
+        points = [(it, e) for it, e in points if e is not None and e > 0]
+        if points:
+            axis.semilogy(*zip(*points, strict=True), "-" if name in fields else "--", lw=1,
+                          color=f"C{index % 10}", label=name if len(name) < 40 else name[:37] + "...")
+    axis.axhline(answer["tolerance"], color="black", lw=0.8, ls=":", label="tolerance")
+    axis.axvline(result["iterations"], color="red", lw=0.8, ls="--")
+    axis.set_ylabel("estimated error")
+    axis.set_title(f"the answer: {result['outcome']} at {result['iterations']}", fontsize=9)
+    axis.legend(fontsize=6, ncol=2)
 
 
 def _now() -> str:

@@ -19,7 +19,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from foam_bridge import FAILURES, OpenFOAMNotFoundError, export_case, shares_of, solved_field_names
+from foam_bridge import (
+    DEFAULT_TOLERANCE,
+    FAILURES,
+    OpenFOAMNotFoundError,
+    export_case,
+    shares_of,
+    solved_field_names,
+)
 from jaxsimrl.apps.foam.solve.agreement import compare_results, measure_spread
 from jaxsimrl.apps.foam.solve.controller import BackgroundLoad, Controller, as_controller, policy_env_config
 from jaxsimrl.apps.foam.solve.criterion import (
@@ -42,7 +49,7 @@ from jaxsimrl.apps.foam.solve.mpi import (
     prepared_input,
     runs_side_by_side,
 )
-from jaxsimrl.apps.foam.solve.own import OwnProcess, OwnRun
+from jaxsimrl.apps.foam.solve.own import OwnProcess, OwnRun, Settle
 from jaxsimrl.apps.foam.solve.report import (
     SolveReport,
     build_report,
@@ -90,7 +97,8 @@ def solve_case(case: str | Path, out: str | Path, policy: Any = None,
                step_timeout_s: float = 300.0, inlet_patch: str | None = None,
                say: Callable[[str], None] | None = None, residual: Residual | str | None = None,
                from_time: float | None = None, rule: str | None = None, ranks: int | None = None,
-               keep_decomposed: bool = False, spread: bool = True, solves: str = "own") -> SolveReport:
+               keep_decomposed: bool = False, spread: bool = True, solves: str = "own",
+               settle: float | None = DEFAULT_TOLERANCE) -> SolveReport:
     """Run ``case`` with a controller into ``out``; see the module docstring. The controller: ``rule`` (a
     no-training rule, jaxsimrl.apps.foam.solve.rules), else ``policy`` (a train-foam run directory, a
     :class:`Controller` or a policy from ``jaxsimrl.load_policy``; the shipped one is
@@ -115,7 +123,10 @@ def solve_case(case: str | Path, out: str | Path, policy: Any = None,
     at its criterion (jaxsimrl.apps.foam.solve.agreement.measure_spread): a third run beside the two;
     ``solves``: OWN_SOLVES (the case's own linear solves, the default) or LEAN (no tighter than
     jaxsimrl.apps.foam.solve.solvers says: the same answer, less work per iteration, but on the coarse step
-    21 % more iterations)."""
+    21 % more iterations); ``settle``: the relative tolerance of the stop on the answer (foam_bridge's
+    AnswerMonitor watches the case's own run and ends it once every field and function-object value is
+    within it of where the run settles, or oscillates with a steady mean and range; None: the plain run,
+    ended only by its criterion, its own function objects or its budget)."""
     if solves not in (LEAN, OWN_SOLVES):
         raise ValueError(f"solves: expected {LEAN!r} or {OWN_SOLVES!r}, got {solves!r}")
     if rule is None and policy is None:
@@ -133,7 +144,7 @@ def solve_case(case: str | Path, out: str | Path, policy: Any = None,
         report = _solve(source, out, policy, compare, compare_constant, max_iterations, confirm_alpha_u,
                         watchdog or WatchdogSettings(), (action_box, step_timeout_s, inlet_patch), residual,
                         start_of(source, from_time), say, started, others, rule, (ranks, keep_decomposed),
-                        spread, solves)
+                        spread, solves, settle)
     except KeyboardInterrupt as stop:  # Ctrl-C or SIGTERM: the finally blocks below stop every solver
         write_status(out, "interrupted", case, stop_word(stop))
         raise
@@ -191,7 +202,7 @@ def _solve(case: Path, out: Path, policy: Any, compare: bool, constant: Sequence
            env: tuple[Any, float, str], residual: Residual | str | None, begin: tuple[int, str],
            say: Callable[[str], None], started: float, others: list[OwnProcess],
            rule: str | None, parallel_run: tuple[int, bool], spread: bool = True,
-           solves: str = "own") -> SolveReport:
+           solves: str = "own", settle: float | None = None) -> SolveReport:
     # What waits on what: the controller loads (JAX, its acting arrays, the first action compiled) in a
     # thread from here on, beside the case check (copy, mesh, one SIMPLE iteration: once, the controlled
     # run's env starts from its build) and the worker's start; the first step waits for both, every
@@ -221,7 +232,8 @@ def _solve(case: Path, out: Path, policy: Any, compare: bool, constant: Sequence
     lean = make_lean(checked.directory, solved) if solves == LEAN else {}
     phases["case_check_s"], mark = time.monotonic() - mark, time.monotonic()
     own = Own(settings.flat, None if residual is None else dict(cfg.convergence), start, ranks,
-              nudged_factors(settings) if compare and spread else None)
+              nudged_factors(settings) if compare and spread else None,
+              None if settle is None else Settle(settle, tuple(solved)))
     parallel = runs_side_by_side(ranks)  # else the runs would share cores: one after the other
     comparisons = _start_comparisons(case, out, compare, constant, own, others) if parallel else {}
     observed = observed_mapping(trained, checked.info.solved_fields)[0]
@@ -328,6 +340,7 @@ class Own:
     start: int = 0
     ranks: int = 1
     nudged: tuple[tuple[float, ...], str] | None = None
+    settle: Settle | None = None  # the case's own run in place of a controller's stops on its answer
 
 
 def _start_comparisons(case: Path, out: Path, compare: bool, constant: Sequence[float] | None, own: Own,
@@ -379,14 +392,15 @@ def _spread(own_run: OwnRun | None, nudged: OwnRun | None, own: Own, fields: lis
 
 def _own_rescue(case: Path, out: Path, comparisons: dict[str, OwnProcess], run: Any, own: Own,
                 say: Callable[[str], None]) -> OwnRun:
-    """The case run with its own settings from its initial fields (the comparison's run if there is one)."""
+    """The case run with its own settings from its initial fields, stopped on its answer where
+    ``own.settle`` says so (else the comparison's own run if there is one: the same plain run)."""
     if run.outcome != "not run":
         say(f"the controlled run ended {run.outcome} at {run.iterations}: running the case's own settings")
-    if "own" in comparisons:
+    if "own" in comparisons and own.settle is None:  # --compare's own run is the plain run
         result = comparisons["own"].result(24 * 3600.0)
     else:
         process = OwnProcess(case, out / WORK_DIR / "own", "own", 24 * 3600.0, None, False, own.criterion,
-                             own.start, own.ranks)
+                             own.start, own.ranks, own.settle)
         try:
             result = process.result(24 * 3600.0)
         finally:
