@@ -49,7 +49,7 @@ __all__ = ["MONITOR_DIR", "SAMPLE_INTERVAL", "AnswerMonitor", "install_monitor",
 MONITOR_DIR = "jaxsimrlSettle"
 _INCLUDE = f'#include "{MONITOR_DIR}/controlDict"'
 #: Iterations between two samples of the fields (odd: see the module docstring).
-SAMPLE_INTERVAL = 5
+SAMPLE_INTERVAL = 25
 SAMPLE_FUNCTION = "jaxsimrlSettleSample"
 #: Snapshots kept of a field (foam_bridge._iterative_error.QuantityTrack thins them to cover the run):
 #: enough for the window's blocks and range, few enough that a judgement costs little.

@@ -29,6 +29,7 @@ from foam_bridge._iterative_error import (
     QuantityTrack,
     cycle_floor,
     estimate,
+    norm,
     steady_window,
 )
 
@@ -47,8 +48,8 @@ CYCLE_FRACTION, MIN_CYCLE_WINDOW, STABLE = 1.0 / 3.0, 300, 0.25
 
 
 #: The verdict is judged again once the run has gone this fraction further (at every sample early on):
-#: about 50 judgements per run, each a few field operations over the window's snapshots.
-JUDGE_FRACTION = 0.02
+#: about 35 judgements per run, each a few field operations over the window's snapshots.
+JUDGE_FRACTION = 0.03
 
 
 def judge_due(iteration: int, last: int | None) -> bool:
@@ -126,7 +127,7 @@ def _cycle(track: QuantityTrack, iteration: int, found: Estimate, rule: SettleRu
     floors = [cycle_floor(_differences(track, iteration - k * width, width)) for k in (0, 1)]
     half_a, half_b = max(half_a, floors[0]), max(half_b, floors[1])
     half = max(half_a, half_b)
-    shift = float(np.linalg.norm(mean_a - mean_b)) / track.scale if track.scale > 0 else math.inf
+    shift = float(norm(mean_a - mean_b)) / track.scale if track.scale > 0 else math.inf
     if shift > STABLE * half or abs(half_a - half_b) > STABLE * half:
         return None
     overall = max(_mean_half(before + latest, track.scale)[1], found.half_range)
@@ -142,6 +143,6 @@ def _differences(track: QuantityTrack, end: int, width: int) -> np.ndarray:
 def _mean_half(values: list[np.ndarray], scale: float) -> tuple[np.ndarray, float]:
     stack = np.stack(values)
     mean = stack.mean(axis=0)
-    spread = max(float(np.linalg.norm(v - mean)) for v in stack)
+    spread = max(float(norm(v - mean)) for v in stack)
     return mean, spread / scale if scale > 0 else math.inf
 
