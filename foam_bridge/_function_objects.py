@@ -50,7 +50,7 @@ def quantity_name(key: str, row: str, column: str) -> str:
 
 def row_scale(columns: Sequence[Sequence[float]]) -> float:
     """The scale floor of a row: SCALE_FLOOR x its largest finite |value|."""
-    magnitudes = [float(np.linalg.norm(v)) for v in columns]
+    magnitudes = [math.hypot(*v) for v in columns]
     return SCALE_FLOOR * max((m for m in magnitudes if math.isfinite(m)), default=0.0)
 
 
@@ -109,7 +109,9 @@ class TableReader:
         self.path, self._offset, self._headers = path, 0, []
         self._failed = False
 
-    def read(self) -> list[tuple[float, str, dict[str, tuple[float, ...]]]] | None:
+    def read(self, stride: int = 1) -> list[tuple[float, str, dict[str, tuple[float, ...]]]] | None:
+        """The rows completed since the last call; ``stride``: only those whose time is a multiple of it
+        (the others are not parsed)."""
         if self._failed:
             return None
         try:
@@ -125,6 +127,8 @@ class TableReader:
         except UnicodeDecodeError:
             self._failed = True
             return None
+        if stride > 1:
+            lines = [line for line in lines if line.startswith("#") or _on_stride(line, stride)]
         rows = self.parse(lines)
         self._failed = rows is None
         return rows
@@ -149,6 +153,14 @@ class TableReader:
                          [f"column {i}" for i in range(1, len(cells))])
             rows.append((time, *_row_values(cells[1:], names)))
         return rows
+
+
+def _on_stride(line: str, stride: int) -> bool:
+    """Whether a row's time (its first cell) is a multiple of ``stride``; a row that does not start with a
+    number is kept (parse decides what it is)."""
+    head = line.split(None, 1)[0] if line.strip() else ""
+    time = _number(head)
+    return time is None or round(time) % stride == 0
 
 
 def _row_values(cells: Sequence[str], names: Sequence[str]) -> tuple[str, dict[str, tuple[float, ...]]]:

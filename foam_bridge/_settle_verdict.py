@@ -29,6 +29,7 @@ from foam_bridge._iterative_error import (
     QuantityTrack,
     cycle_floor,
     estimate,
+    farthest,
     norm,
     steady_window,
 )
@@ -143,6 +144,6 @@ def _differences(track: QuantityTrack, end: int, width: int) -> np.ndarray:
 def _mean_half(values: list[np.ndarray], scale: float) -> tuple[np.ndarray, float]:
     stack = np.stack(values)
     mean = stack.mean(axis=0)
-    spread = max(float(norm(v - mean)) for v in stack)
+    spread = farthest(stack, mean)
     return mean, spread / scale if scale > 0 else math.inf
 
