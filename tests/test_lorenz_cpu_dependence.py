@@ -1,8 +1,9 @@
 """Why one Lorenz seed scores differently on different CPUs (issue 48).
 
 `train-lorenz` + `eval-lorenz` with the paper config, seed 0, scored 15,789 on an AMD EPYC family 25 model 17,
-15,418 on an Intel Xeon family 6 model 207 and 12,052 on an AMD EPYC family 26, with the same code
-(benchmarks/RESULTS_ppo.md, "Across CPUs"). The mechanism, as measured on the Xeon family 6 model 207
+15,418 on an Intel Xeon family 6 model 207 and 12,052 on an AMD EPYC family 26 (benchmarks/RESULTS_ppo.md,
+"Across CPUs"; the EPYC 25/17 figure is the code of 2026-11-21: the current code gives 15,481 there, "Two
+machines of one model"). The mechanism, as measured on the Xeon family 6 model 207
 (AVX-512, AMX), jax 0.10.2:
 
 - **The vector ISA that XLA compiles for changes the last bits.** One env step of eval-lorenz's batch (the
