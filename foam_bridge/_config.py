@@ -208,6 +208,10 @@ class FoamEnvConfig:
             discrete problem the solver iterates on and the run re-converges: airFoil2D's own factors
             jittered by +-0.03 share every 50 iterations took 569 iterations against 292
             (experiments/controller/family-v3-setup/jitter.json); jaxsimrl.apps.foam.solve.rules freezes at 1.
+        settle: the answer monitor's tolerance (foam_bridge._answer_monitor, as ``jaxsimrl solve
+            --settle``): an episode whose answer has settled within it, or oscillates about a steady mean,
+            ends at that step with outcome "settled" or "oscillating" (terminated, not a failure). None
+            (default): episodes end as before, so recorded runs replay.
         reward: the cost whose increase is the negative reward of a step, one of REWARDS:
             "iterations" (default, the paper's: SIMPLE iterations K), "linear-iterations" (the inner
             iterations of every linear solve, all fields: what one SIMPLE iteration costs changes with
@@ -272,6 +276,7 @@ class FoamEnvConfig:
     pivot_at: str = "family"
     reward_scale: float = 1.0
     freeze_decades: float | None = None
+    settle: float | None = None
     state_scale: float = U_REF**2
     failure_penalty: float | None = None
     divergence_threshold: float = 1e3

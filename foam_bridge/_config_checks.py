@@ -49,6 +49,7 @@ def check_fields(cfg: Any) -> None:
     _check(_is_int(cfg.ranks) and cfg.ranks >= 1 and (cfg.ranks == 1 or not cfg.builtin), "ranks",
            cfg.ranks, "an integer >= 1 (> 1 only for a user's case_dir)")
     _check(_is_int(cfg.interval) and cfg.interval >= 1, "interval", cfg.interval, "an integer >= 1")
+    _check(cfg.settle is None or 0 < cfg.settle < 1, "settle", cfg.settle, "None or a tolerance in (0, 1)")
     _check(_is_int(cfg.state_interval) and cfg.state_interval >= 1
            and cfg.interval % cfg.state_interval == 0, "state_interval", cfg.state_interval,
            f"an integer >= 1 that divides interval ({cfg.interval})")

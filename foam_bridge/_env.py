@@ -72,6 +72,7 @@ from foam_bridge._config import FoamEnvConfig, cost_per_iteration, failure_rewar
 from foam_bridge._confirm import confirm, meets, step_turbulence_factor
 from foam_bridge._env_lock import claim_directory
 from foam_bridge._episode_draws import episode_height, episode_velocity
+from foam_bridge._episode_settle import answer_stop, episode_monitor
 from foam_bridge._logparse import LogParser, criterion_distance, field_residual
 from foam_bridge._observation import EpisodeObservation
 from foam_bridge._openfoam import find_openfoam
@@ -164,6 +165,7 @@ class FoamCaseEnv:
         self._turbulence = episode_case.turbulence_fields(cfg, self.case_info)  # what alpha_t relaxes
         self._rng = np.random.default_rng(env_id)
         self._solver: FoamSolver | None = None
+        self._monitor = None  # the episode's answer monitor (FoamEnvConfig.settle)
         self._episode: dict[str, Any] = {}
         self._done = True
         self._closed = False
@@ -190,6 +192,7 @@ class FoamCaseEnv:
         self._use_height(episode_height(self.cfg, self._rng, options or {}))
         episode_case.write_episode_case(self.base, self.case_dir, self.cfg, velocity, self.case_info,
                                          self.openfoam)
+        self._monitor = episode_monitor(self.cfg, self.case_dir, self.case_info.solved_fields)
         inlet, cells = episode_case.initial_state(self.case_info, velocity)
         if velocity is None:  # the user's case keeps its inlet: report its speed (NaN if it has none)
             velocity = math.nan if self.case_info.inlet_speed is None else self.case_info.inlet_speed
@@ -231,6 +234,9 @@ class FoamCaseEnv:
         outcome, cause, iterations = classify(event, code, self._parser, self.cfg, self._target)
         if self.cfg.confirm_alpha_u is not None:
             outcome, cause, iterations = self._confirmed(outcome, cause, iterations, alpha, text)
+        stop = answer_stop(self._monitor, self._parser) if outcome == "running" else None
+        if stop is not None:  # FoamEnvConfig.settle: the answer has settled, or oscillates steadily
+            (outcome, cause), _ = stop, self._stop_solver()
         previous, self._iterations = self._iterations, max(iterations, self._iterations)
         spent, self._cost = self._cost, self._episode_cost()
         if outcome in FAILURES:

@@ -18,7 +18,9 @@ if TYPE_CHECKING:
     from foam_bridge._logparse import LogParser
 
 #: Every value of ``info["outcome"]``.
-OUTCOMES = ("running", "converged", "truncated", "crashed", "diverged", "hung")
+OUTCOMES = ("running", "converged", "settled", "oscillating", "truncated", "crashed", "diverged", "hung")
+#: Outcomes of an episode the answer monitor ended (FoamEnvConfig.settle): its answer settled within the
+#: tolerance, or oscillates about a steady mean.
 #: Outcomes that are a failure of the solver (terminated, with the failure penalty).
 FAILURES = ("crashed", "diverged", "hung")
 #: The cause of a "converged" episode that the case's own function object ended (a runTimeControl with
