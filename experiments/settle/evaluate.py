@@ -121,19 +121,43 @@ def judge_row(row: dict, reference: dict, arrays: Path) -> dict:
             "met_within_budget": reference["met_within_budget"]}
 
 
+#: The fresh set's rule (experiments/settle/fresh-set/README.md), fixed before any run: a candidate whose
+#: solver CPU to its budget is this or more is out.
+CPU_LIMIT_S = 150.0
+
+
+def why_out(reference: dict) -> str:
+    """Why a candidate is not in the set by the rule ("" when it is in)."""
+    if reference["met_within_budget"]:
+        return f"its own criterion met at iteration {reference['criterion_met_at']}"
+    if reference["exit_code"] != 0 or reference["iterations_run"] < reference["end"] - reference["start"]:
+        return f"its reference run crashed at iteration {reference['iterations_run']}"
+    if reference["cpu_to_budget_s"] is None or reference["cpu_to_budget_s"] >= CPU_LIMIT_S:
+        return f"solver CPU to its budget {reference['cpu_to_budget_s']} s"
+    return ""
+
+
 def table(rows_path: Path, references: Path, arrays: Path, out: Path) -> None:
     rows = [json.loads(line) for line in rows_path.read_text().splitlines()]
-    judged = []
+    judged, left_out = [], []
     for row in rows:
         ref_path = references / f"{row['case']}.json"
-        if row["outcome"] == "failed" or not ref_path.is_file():
+        if not ref_path.is_file():
+            left_out.append((row["case"], "no reference yet"))
             continue
-        judged.append(judge_row(row, json.loads(ref_path.read_text()), arrays))
-    lines = ["| case | outcome | iterations / budget | first within 1e-3 | stop / first | true error (max) | "
-             "estimate (max) | estimate >= true | half-range short | solver CPU s | monitor CPU s |",
-             "|---|---|---|---|---|---|---|---|---|---|---|"]
+        reference = json.loads(ref_path.read_text())
+        reason = why_out(reference) or ("its solve failed" if row["outcome"] == "failed" else "")
+        if reason:
+            left_out.append((row["case"], reason))
+            continue
+        judged.append({**judge_row(row, reference, arrays),
+                       "algorithm": "SIMPLEC" if reference["consistent"] else "SIMPLE"})
+    lines = ["| case | algorithm | outcome | iterations / budget | first within 1e-3 | stop / first | "
+             "true error (max) | estimate (max) | estimate >= true | half-range short | solver CPU s | "
+             "monitor CPU s |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for j in judged:
-        lines.append(f"| {j['case']} | {j['outcome']} | {j['iterations']} / {j['budget']} | "
+        lines.append(f"| {j['case']} | {j['algorithm']} | {j['outcome']} | "
+                     f"{j['iterations']} / {j['budget']} | "
                      f"{j['first_within']} | {_f(j['stop_over_first'], '.2f')} | {_f(j['true_max'])} | "
                      f"{_f(j['estimate_max'])} | "
                      f"{j['held']}/{len(j['pairs'])} | {len(j['half_short'])} | {j['solver_cpu_s']:.1f} | "
@@ -141,7 +165,10 @@ def table(rows_path: Path, references: Path, arrays: Path, out: Path) -> None:
     pairs = [p for j in judged for p in j["pairs"]]
     ratios = [e / t for e, t in pairs if t > 0]
     settled = [j for j in judged if j["outcome"] == "settled"]
-    summary = {"cases": len(judged),
+    summary = {"cases": len(judged), "out": dict(left_out),
+               "simple": sum(j["algorithm"] == "SIMPLE" for j in judged),
+               "simplec": sum(j["algorithm"] == "SIMPLEC" for j in judged),
+               "cpu_30s_or_more": sum((j["cpu_to_budget_s"] or 0) >= 30 for j in judged),
                "median_iterations_over_budget": statistics.median(j["iterations"] / j["budget"]
                                                                   for j in judged),
                "pairs": len(pairs),
@@ -155,7 +182,9 @@ def table(rows_path: Path, references: Path, arrays: Path, out: Path) -> None:
                "oscillating_half_range_short": {j["case"]: j["half_short"] for j in judged
                                                 if j["outcome"] == "oscillating" and j["half_short"]}}
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text("\n".join(lines) + "\n\n```json\n" + json.dumps(summary, indent=1) + "\n```\n")
+    out.write_text("\n".join(lines) + "\n\nOut by the rule: " + "; ".join(f"{name} ({why})" for name, why
+                                                                      in left_out) + "\n\n```json\n"
+                   + json.dumps(summary, indent=1) + "\n```\n")
     out.with_suffix(".json").write_text(json.dumps(judged, indent=1))
     print("\n".join(lines))
     print(json.dumps(summary, indent=1))

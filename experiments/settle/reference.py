@@ -259,6 +259,14 @@ def recompute(out: Path) -> tuple[Path, dict, dict, list[str]]:
     return out / "case", {**ran, "history": parser.history}, facts, facts["fields"]
 
 
+def _write(record: dict, args: argparse.Namespace) -> None:
+    text = json.dumps(record, indent=1, default=float)
+    (args.out / "reference.json").write_text(text)
+    if args.json:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(text)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("case", type=Path)
@@ -275,9 +283,16 @@ def main() -> None:
     else:
         run_dir, facts, fields = prepare(args.case.resolve(), args.out, args.factor)
         ran = run(run_dir, facts, args.out / "samples")
-    if ran["exit_code"] != 0:
-        print(f"{args.case}: simpleFoam exited {ran['exit_code']}: {ran['error']}", file=sys.stderr)
     met = criterion_met(ran["history"], facts["criterion"])
+    if ran["exit_code"] != 0:  # no reference answer: the record says why (the fresh set's rule reads it)
+        print(f"{args.case}: simpleFoam exited {ran['exit_code']}: {ran['error']}", file=sys.stderr)
+        record = {"case": args.out.name if args.recompute else args.case.name, "kind": "crashed",
+                  **{k: facts[k] for k in ("start", "budget", "end", "criterion", "consistent")},
+                  "criterion_met_at": met, "met_within_budget": met is not None and met <= facts["budget"],
+                  "exit_code": ran["exit_code"], "error": ran["error"], "iterations_run": ran["iterations"],
+                  "cpu_to_budget_s": ran["cpu_to_budget_s"], "cpu_s": ran["cpu_s"]}
+        _write(record, args)
+        return
     reference = fields_reference(args.out / "samples", fields, facts["budget"], facts["end"] - facts["start"])
     values = values_reference(run_dir, facts["start"], facts["budget"], facts["end"], reference["kind"])
     name = args.out.name if args.recompute else args.case.name
@@ -289,11 +304,7 @@ def main() -> None:
         "cells": int(np.load(args.out / "samples" / f"{fields[0]}.npy", mmap_mode="r").shape[1]),
         "sample_interval": SAMPLE_INTERVAL, "date": time.strftime("%Y-%m-%d"),
         **reference, "values": values}
-    text = json.dumps(record, indent=1, default=float)
-    (args.out / "reference.json").write_text(text)
-    if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(text)
+    _write(record, args)
     print(f"{args.case.name}: {reference['kind']}, criterion met at {met}, cpu to budget "
           f"{ran['cpu_to_budget_s']}, {ran['iterations']} iterations")
 
