@@ -1,18 +1,19 @@
 """What the answer monitor of ``solve --settle`` costs: the same iterations of a case with and without it.
 
     WM_PROJECT_DIR=/usr/share/openfoam .venv/bin/python benchmarks/bench_settle_cost.py \
-        --out benchmarks/results/settle-cost-DATE --pairs 5 --iterations 1000
+        --out benchmarks/results/settle-cost-DATE --pairs 5
 
 Each pair is two runs of the same case through ``solve_case`` to the same iteration count (a criterion it
-never meets, ``--max-iterations``): the plain run (``settle=None``) and the monitored one with a tolerance it
-cannot reach (1e-12: the monitor samples and judges all the way, and never stops the run), in alternating
-order. Per run: simpleFoam's own CPU seconds (its ExecutionTime: on a noisy, shared machine the solver's own
-figure for the same iterations, which the binary writes every 25 iterations add to) and the monitor's own
-CPU seconds (its process's time in its polls, beside the solver). Reported per case: the medians of
-(monitored solver CPU / plain solver CPU - 1) and of (monitor CPU / plain solver CPU), and their sum: the
-cost on top of the plain run. Cases: pitzDaily (the tutorial, 12,225 cells, no function object read) and
-heldout-v2's squareTubeRow with a user's forces, a probe and an outlet average (function objects every
-iteration). Writes OUT/settle_cost.jsonl (every run) and OUT/settle_cost.md (machine, date, medians).
+never meets: its whole budget, its own endTime): the plain run (``settle=None``) and the monitored one with
+a tolerance it cannot reach (1e-12: the monitor samples and judges all the way, and never stops the run), in
+alternating order. Per run: simpleFoam's own CPU seconds (its ExecutionTime: on a noisy, shared machine the
+solver's own figure for the same iterations, which the binary writes every 25 iterations add to) and the
+monitor's own CPU seconds (its process's time in its polls, beside the solver). Reported per case: the
+medians of (monitored solver CPU / plain solver CPU - 1) and of (monitor CPU / plain solver CPU), and their
+sum: the cost on top of the plain run. Cases: pitzDaily (the tutorial, 12,225 cells, no function object
+read) and heldout-v2's squareTubeRow with a user's forces, a probe and an outlet average (function objects
+every iteration). Writes OUT/settle_cost.jsonl (every run) and OUT/settle_cost.md (machine, date, medians);
+``--table-only`` writes the table again from OUT/settle_cost.jsonl.
 """
 
 from __future__ import annotations
@@ -64,12 +65,11 @@ def cases(root: Path) -> dict[str, Path]:
     return built
 
 
-def one_run(case: Path, out: Path, iterations: int, monitored: bool) -> dict:
+def one_run(case: Path, out: Path, monitored: bool) -> dict:
     from jaxsimrl.apps.foam.solve import solve_case
 
     shutil.rmtree(out, ignore_errors=True)
-    report = solve_case(case, out, residual=NEVER, max_iterations=iterations,
-                        settle=1e-12 if monitored else None)
+    report = solve_case(case, out, residual=NEVER, settle=1e-12 if monitored else None)
     result = report.data["result"]
     answer = report.data.get("answer") or {}
     return {"iterations": result["iterations"], "solver_cpu_s": result["solver_cpu_time_s"],
@@ -80,26 +80,40 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--out", type=Path, required=True)
     parser.add_argument("--pairs", type=int, default=5)
-    parser.add_argument("--iterations", type=int, default=1000)
+    parser.add_argument("--table-only", action="store_true")
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
+    if args.table_only:
+        rows = [json.loads(line) for line in (args.out / "settle_cost.jsonl").read_text().splitlines()]
+    else:
+        rows = measure(args.pairs)
+        with open(args.out / "settle_cost.jsonl", "w") as file:
+            file.writelines(json.dumps(row) + "\n" for row in rows)
+    write_table(args.out, rows, args.pairs)
+
+
+def measure(pairs: int) -> list[dict]:
     work = Path(os.environ.get("TMPDIR", "/tmp")) / "bench_settle_cost"
     rows = []
     for name, case in cases(work).items():
-        for pair in range(args.pairs):
+        for pair in range(pairs):
             order = (False, True) if pair % 2 == 0 else (True, False)
             for monitored in order:
-                row = {"case": name, "pair": pair, **one_run(case, work / "out", args.iterations, monitored)}
+                row = {"case": name, "pair": pair, **one_run(case, work / "out", monitored)}
                 rows.append(row)
                 print(json.dumps(row), flush=True)
-    with open(args.out / "settle_cost.jsonl", "w") as file:
-        file.writelines(json.dumps(row) + "\n" for row in rows)
+    return rows
+
+
+def write_table(out: Path, rows: list[dict], count: int) -> None:
+    lengths = ", ".join(f"{name} {iterations}" for name, iterations in
+                        {row["case"]: row["iterations"] for row in rows}.items())
     lines = [f"# The answer monitor's cost ({datetime.date.today()}, {platform.node()}, {_cpu()}, "
-             f"{os.cpu_count()} cores; {args.iterations} iterations, {args.pairs} alternated pairs)",
+             f"{os.cpu_count()} cores; {count} alternated pairs; iterations: {lengths})",
              "", "| case | solver CPU plain (median s) | solver's extra CPU | monitor's CPU | total |",
              "|---|---|---|---|---|"]
     for name in dict.fromkeys(row["case"] for row in rows):
-        pairs = [[r for r in rows if r["case"] == name and r["pair"] == p] for p in range(args.pairs)]
+        pairs = [[r for r in rows if r["case"] == name and r["pair"] == p] for p in range(count)]
         plain = [next(r for r in pair if not r["monitored"]) for pair in pairs]
         watched = [next(r for r in pair if r["monitored"]) for pair in pairs]
         extra = statistics.median(w["solver_cpu_s"] / p["solver_cpu_s"] - 1 for p, w in zip(plain, watched,
@@ -108,7 +122,7 @@ def main() -> None:
                                                                                                strict=True))
         lines.append(f"| {name} | {statistics.median(p['solver_cpu_s'] for p in plain):.1f} | "
                      f"{100 * extra:+.1f} % | {100 * monitor:.1f} % | {100 * (extra + monitor):.1f} % |")
-    (args.out / "settle_cost.md").write_text("\n".join(lines) + "\n")
+    (out / "settle_cost.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
 
 
