@@ -96,3 +96,13 @@ def test_a_bad_settle_tolerance_is_one_line_and_exit_2(tmp_path: Path, value: st
                           capture_output=True, text=True, check=False)
     assert done.returncode == 2
     assert len(done.stderr.strip().splitlines()) == 1 and "--settle" in done.stderr
+
+
+@pytest.mark.slow  # one coarse-step solve of 300 iterations
+def test_max_iterations_bounds_the_default_run(tmp_path: Path) -> None:
+    """--max-iterations is the default run's budget too (it ran to the case's own endTime before)."""
+    case = _coarse_step(tmp_path / "step")
+    report = solve_case(case, tmp_path / "out", residual=NEVER, settle=None, max_iterations=300,
+                        step_timeout_s=120)
+    assert report.iterations == 300 and report.data["result"]["outcome"] == "not converged"
+    assert (tmp_path / "out" / "300" / "U").is_file()

@@ -70,19 +70,23 @@ class Settle:
 
 def run_own(source: Path, dest: Path, label: str, timeout_s: float, factors: Sequence[float] | None = None,
             flat: bool = False, criterion: Mapping[str, float] | None = None, start_time: int = 0,
-            ranks: int = 1, settle: Settle | None = None) -> OwnRun:
+            ranks: int = 1, settle: Settle | None = None, budget: int | None = None) -> OwnRun:
     """Copy ``source`` to ``dest`` (mesh it if needed) and run simpleFoam once to its end; ``factors``:
     constant (alpha_u, alpha_p[, turbulence]) merged into its relaxationFactors (else its own);
     ``criterion``: its SIMPLE.residualControl instead of its own (solve's ``--residual``);
     ``start_time``: the time directory it starts from (``startFrom latestTime`` with only 0 and that one
     copied), iterations counted from there; ``ranks`` > 1: decomposed, run under mpirun and its latest
     fields reconstructed, as the user would run it; ``settle``: the answer monitor watches the run and
-    stops it once its answer has settled (foam_bridge's AnswerMonitor; None: the plain run)."""
+    stops it once its answer has settled (foam_bridge's AnswerMonitor; None: the plain run); ``budget``:
+    its iterations at most (``--max-iterations``; None: its own endTime)."""
     openfoam = find_openfoam()
     copy_case(source, dest, start_time=start_time)
     if start_time:
         with open(dest / "system" / "controlDict", "a") as out:
             out.write("\n// ----- jaxsimrl solve: from the time copied -----\nstartFrom latestTime;\n")
+    if budget is not None:
+        with open(dest / "system" / "controlDict", "a") as out:
+            out.write(f"\n// ----- jaxsimrl solve --max-iterations -----\nendTime {start_time + budget};\n")
     if not (dest / "constant" / "polyMesh" / "boundary").is_file():
         run_application(openfoam, "blockMesh", dest)
     if criterion is not None:

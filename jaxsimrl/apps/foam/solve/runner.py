@@ -233,7 +233,7 @@ def _solve(case: Path, out: Path, policy: Any, compare: bool, constant: Sequence
     phases["case_check_s"], mark = time.monotonic() - mark, time.monotonic()
     own = Own(settings.flat, None if residual is None else dict(cfg.convergence), start, ranks,
               nudged_factors(settings) if compare and spread else None,
-              None if settle is None else Settle(settle, tuple(solved)))
+              None if settle is None else Settle(settle, tuple(solved)), max_iterations)
     parallel = runs_side_by_side(ranks)  # else the runs would share cores: one after the other
     comparisons = _start_comparisons(case, out, compare, constant, own, others) if parallel else {}
     observed = observed_mapping(trained, checked.info.solved_fields)[0]
@@ -341,6 +341,7 @@ class Own:
     ranks: int = 1
     nudged: tuple[tuple[float, ...], str] | None = None
     settle: Settle | None = None  # the case's own run in place of a controller's stops on its answer
+    budget: int | None = None  # --max-iterations: the own run in place of a controller's stops there
 
 
 def _start_comparisons(case: Path, out: Path, compare: bool, constant: Sequence[float] | None, own: Own,
@@ -396,11 +397,11 @@ def _own_rescue(case: Path, out: Path, comparisons: dict[str, OwnProcess], run: 
     ``own.settle`` says so (else the comparison's own run if there is one: the same plain run)."""
     if run.outcome != "not run":
         say(f"the controlled run ended {run.outcome} at {run.iterations}: running the case's own settings")
-    if "own" in comparisons and own.settle is None:  # --compare's own run is the plain run
+    if "own" in comparisons and own.settle is None and own.budget is None:  # --compare's: the plain run
         result = comparisons["own"].result(24 * 3600.0)
     else:
         process = OwnProcess(case, out / WORK_DIR / "own", "own", 24 * 3600.0, None, False, own.criterion,
-                             own.start, own.ranks, own.settle)
+                             own.start, own.ranks, own.settle, own.budget)
         try:
             result = process.result(24 * 3600.0)
         finally:
