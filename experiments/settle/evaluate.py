@@ -190,6 +190,39 @@ def table(rows_path: Path, references: Path, arrays: Path, out: Path) -> None:
     print(json.dumps(summary, indent=1))
 
 
+def converging_table(rows_path: Path, references: Path, arrays: Path, out: Path) -> None:
+    """A converging set: each case against its own run (the reference's first iteration meeting the
+    criterion): never more iterations; where the stop on the answer came first, the true error there."""
+    lines = ["| case | outcome | iterations | own (criterion) | ratio | true error (max) | estimate (max) | "
+             "estimate >= true |", "|---|---|---|---|---|---|---|---|"]
+    judged = []
+    for row in (json.loads(line) for line in rows_path.read_text().splitlines()):
+        reference = json.loads((references / f"{row['case']}.json").read_text())
+        own = reference["criterion_met_at"]
+        found = judge_row(row, reference, arrays)
+        found["own"] = own
+        judged.append(found)
+        lines.append(f"| {row['case']} | {row['outcome']} | {row['iterations']} | {own} | "
+                     f"{_f(row['iterations'] / own if own else None, '.3f')} | {_f(found['true_max'])} | "
+                     f"{_f(found['estimate_max'])} | {found['held']}/{len(found['pairs'])} |")
+    pairs = [p for j in judged for p in j["pairs"]]
+    ratios = [e / t for e, t in pairs if t > 0]
+    early = [j for j in judged if j["outcome"] in ("settled", "oscillating")]
+    summary = {"cases": len(judged),
+               "more_iterations_than_own": [j["case"] for j in judged
+                                            if j["own"] and j["iterations"] > j["own"]],
+               "stopped_on_the_answer_first": [j["case"] for j in early],
+               "of_those_true_error_above_tolerance": [j["case"] for j in early
+                                                       if (j["true_max"] or 0) > TOLERANCE],
+               "pairs": len(pairs),
+               "share_held": sum(e >= t for e, t in pairs) / len(pairs) if pairs else None,
+               "median_estimate_over_true": statistics.median(ratios) if ratios else None}
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text("\n".join(lines) + "\n\n```json\n" + json.dumps(summary, indent=1) + "\n```\n")
+    print("\n".join(lines))
+    print(json.dumps(summary, indent=1))
+
+
 def _f(value: float | None, spec: str = ".1e") -> str:
     return "" if value is None or (isinstance(value, float) and math.isnan(value)) else format(value, spec)
 
@@ -207,9 +240,13 @@ def main() -> None:
     tab.add_argument("--references", type=Path, required=True)
     tab.add_argument("--arrays", type=Path, required=True)
     tab.add_argument("--table", type=Path, required=True)
+    tab.add_argument("--converging", action="store_true",
+                     help="a converging set: each case against its own run, no fresh-set rule")
     args = parser.parse_args()
     if args.command == "run":
         run(args.cases, args.out, args.rows, args.only)
+    elif args.converging:
+        converging_table(args.rows, args.references, args.arrays, args.table)
     else:
         table(args.rows, args.references, args.arrays, args.table)
 
