@@ -164,6 +164,7 @@ class AnswerMonitor:
         self._since: _Since | None = None
         self.cpu_s = 0.0  # this process's CPU seconds in poll: the monitor's own cost beside the solver's
         self._sources = _Sources({}, [], set())
+        self._sampled_to = 0  # the iteration of the last field sample read
 
     def install(self) -> None:
         install_monitor(self.case, self.fields, self.interval, self.ranks)
@@ -175,6 +176,8 @@ class AnswerMonitor:
         started = process_time()
         due_before = self.stop_due
         ready = self._ready_samples(iteration, ended)
+        if ready or ended:
+            self._follow_files()  # once a poll: it walks postProcessing/
         for index, (time, directory_set) in enumerate(ready):
             self._read_values()
             values = self._read_fields(directory_set)
@@ -182,6 +185,7 @@ class AnswerMonitor:
                 continue
             for name, value in values.items():
                 self._track(name).add(time, value)
+            self._sampled_to = time
             self._judge(time, final=ended and index == len(ready) - 1)
         if ended:
             self._read_values()
@@ -193,11 +197,8 @@ class AnswerMonitor:
         ready = []
         for time, directory in time_directories(roots[0]):
             at = int(round(time)) - self.start
-            if at <= 0 or (not ended and at >= iteration) or time != round(time):
-                continue
-            if self.tracks and at <= max(track.iterations[-1] for track in self.tracks.values()
-                                         if track.name in self.fields):
-                continue  # read already (a full write kept)
+            if at <= max(0, self._sampled_to) or (not ended and at >= iteration) or time != round(time):
+                continue  # not after the start, read already (a full write kept), or not complete yet
             ready.append((at, [root / directory.name for root in roots]))
         return ready
 
@@ -222,8 +223,7 @@ class AnswerMonitor:
         return self.tracks[name]
 
     def _read_values(self) -> None:
-        """Every function-object row written since the last read."""
-        self._follow_files()
+        """Every function-object row written since the last read (of the files _follow_files found)."""
         for key, reader in list(self._sources.readers.items()):
             rows = reader.read(VALUE_STRIDE)
             if rows is None:

@@ -34,7 +34,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 __all__ = ["CONVERGED", "CONVERGING", "MODELS", "OSCILLATING", "TOO_EARLY", "WANDERING", "Estimate",
-           "QuantityTrack", "cycle_floor", "estimate", "farthest", "norm", "steady_window"]
+           "QuantityTrack", "cycle_floor", "estimate", "farthest", "mean_and_half_range", "norm",
+           "steady_window"]
 
 CONVERGING = "converging"
 OSCILLATING = "oscillating"
@@ -203,12 +204,15 @@ def _half_range(track: QuantityTrack, window: int, d: np.ndarray) -> float:
     their mean), or half the largest difference between samples there (a cycle shorter than the sample
     interval), whichever is larger; relative to the quantity's scale."""
     values = steady_window(track, window)
-    spread = 0.0
-    if len(values) >= 2:
-        stack = np.stack(values)
-        mean = stack.mean(axis=0)
-        spread = farthest(stack, mean)
-    return max(_relative(spread, track.scale), 0.5 * float(d.max()))
+    half = mean_and_half_range(values, track.scale)[1] if values else 0.0
+    return max(half, 0.5 * float(d.max()))
+
+
+def mean_and_half_range(values: list[np.ndarray], scale: float) -> tuple[np.ndarray, float]:
+    """(the mean of some snapshots, their largest distance from it relative to ``scale``)."""
+    stack = np.stack(values)
+    mean = stack.mean(axis=0)
+    return mean, _relative(farthest(stack, mean), scale)
 
 
 def steady_window(track: QuantityTrack, window: int, end: int | None = None) -> list[np.ndarray]:

@@ -29,7 +29,7 @@ from foam_bridge._iterative_error import (
     QuantityTrack,
     cycle_floor,
     estimate,
-    farthest,
+    mean_and_half_range,
     norm,
     steady_window,
 )
@@ -124,14 +124,14 @@ def _cycle(track: QuantityTrack, iteration: int, found: Estimate, rule: SettleRu
     latest, before = (steady_window(track, width, iteration - k * width) for k in (0, 1))
     if len(latest) < 3 or len(before) < 3:
         return None
-    (mean_a, half_a), (mean_b, half_b) = _mean_half(latest, track.scale), _mean_half(before, track.scale)
+    (mean_a, half_a), (mean_b, half_b) = (mean_and_half_range(v, track.scale) for v in (latest, before))
     floors = [cycle_floor(_differences(track, iteration - k * width, width)) for k in (0, 1)]
     half_a, half_b = max(half_a, floors[0]), max(half_b, floors[1])
     half = max(half_a, half_b)
     shift = float(norm(mean_a - mean_b)) / track.scale if track.scale > 0 else math.inf
     if shift > STABLE * half or abs(half_a - half_b) > STABLE * half:
         return None
-    overall = max(_mean_half(before + latest, track.scale)[1], found.half_range)
+    overall = max(mean_and_half_range(before + latest, track.scale)[1], found.half_range)
     return Estimate(found.model, overall, found.period, overall, 2 * width)
 
 
@@ -139,11 +139,4 @@ def _differences(track: QuantityTrack, end: int, width: int) -> np.ndarray:
     """The differences between samples in the ``width`` iterations up to ``end``."""
     return np.asarray([d for it, d in zip(track.iterations, track.differences, strict=True)
                        if end - width < it <= end and math.isfinite(d)] or [0.0])
-
-
-def _mean_half(values: list[np.ndarray], scale: float) -> tuple[np.ndarray, float]:
-    stack = np.stack(values)
-    mean = stack.mean(axis=0)
-    spread = farthest(stack, mean)
-    return mean, spread / scale if scale > 0 else math.inf
 
