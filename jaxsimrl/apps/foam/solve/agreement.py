@@ -161,12 +161,18 @@ def spread_line(spread: Mapping[str, Any], criterion: Mapping[str, float]) -> st
     if spread["settled"]:
         return (f"the criterion fixes the answer: the own run and one at {spread['nudge']} end {named} apart "
                 f"at most")
-    loosest = max(criterion.values())
-    needed = loosest * SETTLED / worst[0][0]
-    tighter = 10.0 ** math.floor(math.log10(needed)) if needed > 0 else loosest / 100
+    tighter = tighter_criterion(max(criterion.values()), worst[0][0], SETTLED)
     return (f"the criterion leaves the answer uncertain: runs at your own factors and at {spread['nudge']} "
             f"both meet it but end {named} apart; a criterion of about {tighter:.0e} (--residual) would "
             f"bring that to ~{100 * SETTLED:g} %")
+
+
+def tighter_criterion(loosest: float, error: float, target: float) -> float:
+    """The residual threshold, a power of ten, that would bring an ``error`` reached at the ``loosest``
+    threshold down to ``target``, assuming the error scales with the threshold (as the distance to the
+    solution did on pitzDaily: benchmarks/bench_agreement.py)."""
+    needed = loosest * target / error
+    return 10.0 ** math.floor(math.log10(needed)) if needed > 0 else loosest / 100
 
 
 def read_internal(path: Path) -> tuple[np.ndarray, bool] | None:

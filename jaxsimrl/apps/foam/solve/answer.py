@@ -17,15 +17,15 @@ solve.json's ``result`` keys and the summary's words:
 
 from __future__ import annotations
 
-import math
 import statistics
 from collections.abc import Mapping, Sequence
 from typing import Any
 
 from foam_bridge import field_residual
+from jaxsimrl.apps.foam.solve.agreement import tighter_criterion
 
 SETTLED, OSCILLATING = "settled", "oscillating"
-#: Outcomes whose answer a user can take: exit code 0.
+#: Outcomes whose answer a user can take: exit code 0 (a campaign's rows too).
 SUCCESS = ("converged", SETTLED)
 
 
@@ -98,10 +98,8 @@ def _models(quantities: Mapping[str, Mapping[str, Any]]) -> str:
 
 
 def _tighter(criterion: Mapping[str, float], error: float, tol: float) -> str:
-    """A --residual that would bring the answer within ``tol``, assuming its error scales with the
-    residual threshold (as the distance to the solution did on pitzDaily: benchmarks/bench_agreement.py)."""
+    """A --residual that would bring the answer within ``tol`` (agreement.tighter_criterion)."""
     if not criterion:
         return "the case has no residual criterion to tighten"
-    needed = max(criterion.values()) * tol / error
-    tighter = 10.0 ** math.floor(math.log10(needed)) if needed > 0 else 0.0
+    tighter = tighter_criterion(max(criterion.values()), error, tol)
     return f"--residual {tighter:.0e} would bring it within {tol:g}"

@@ -15,6 +15,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from jaxsimrl.apps.foam.solve.answer import OSCILLATING, SETTLED, SUCCESS
 from jaxsimrl.apps.foam.solve.report import preload_plotting
 from jaxsimrl.runs.atomic import atomic_write_bytes, atomic_write_text
 
@@ -26,9 +27,6 @@ OWN_COLUMNS = ("own_iterations", "ratio_iterations", "own_wall_s", "ratio_wall")
 #: status of a case whose solve ended with a result / raised (bad case, solver failure, lost workers);
 #: SETTLED and OSCILLATING: its own run stopped on its answer (jaxsimrl.apps.foam.solve.answer).
 CONVERGED, NOT_CONVERGED, FAILED = "converged", "not converged", "failed"
-SETTLED, OSCILLATING = "settled", "oscillating"
-#: Statuses whose answer a user can take (the campaign's exit code 0 needs every case among them).
-SUCCEEDED = (CONVERGED, SETTLED)
 
 
 def row_of(case: Path, out: Path, data: Mapping[str, Any]) -> dict[str, Any]:
@@ -42,7 +40,7 @@ def row_of(case: Path, out: Path, data: Mapping[str, Any]) -> dict[str, Any]:
                            "wall_s": round(float(result["wall_time_s"]), 2),
                            "iterative_error": f"{max(errors):.1e}" if errors else "",
                            "controller": controller_label(data.get("controller") or {}),
-                           "cause": "" if status in SUCCEEDED else str(result.get("cause") or "")}
+                           "cause": "" if status in SUCCESS else str(result.get("cause") or "")}
     own = (data.get("compare") or {}).get("own")
     if own is not None:
         row.update(own_iterations=int(own["iterations"]), ratio_iterations=_rounded(own["ratio_iterations"]),
