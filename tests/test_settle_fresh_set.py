@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import filecmp
 import importlib.util
-import os
 import re
 import shutil
 import subprocess
@@ -17,6 +16,8 @@ from pathlib import Path
 
 import pytest
 from foam_marks import HAVE_OPENFOAM
+
+from foam_bridge import find_openfoam
 
 ROOT = Path(__file__).resolve().parent.parent
 HERE = ROOT / "experiments" / "settle" / "fresh-set"
@@ -124,8 +125,10 @@ def test_a_case_builds_the_same_twice_and_meshes(cases, name, tmp_path):
 
 def _foam(case: Path, *command: str, ok: bool = True, log: bool = True) -> str:
     """``command``'s output (with its errors when ``log``), asserting its exit status."""
-    done = subprocess.run(command, cwd=case, env={**os.environ, "PWD": str(case)}, capture_output=True,
-                          text=True, check=False)  # PWD: else OpenFOAM warns on stdout that it is not cwd
+    # OpenFOAM's own environment (WM_PROJECT_DIR, PWD: else it warns on stdout that it is not cwd), as
+    # the bridge runs it: a shell without WM_PROJECT_DIR (CI's) cannot run foamDictionary otherwise
+    done = subprocess.run(command, cwd=case, env=find_openfoam().environment(case), capture_output=True,
+                          text=True, check=False)
     assert (done.returncode == 0) == ok, (case.name, command, done.stdout[-2000:], done.stderr[-2000:])
     return done.stdout + done.stderr if log else done.stdout
 
