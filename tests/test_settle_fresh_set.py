@@ -1,7 +1,8 @@
-"""Issue 56's fresh-set candidates (experiments/settle/fresh-set): every builder writes a case with its user's
-settings; the candidates hold what the set needs (plain SIMPLE and SIMPLEC, the turbulence models mixed,
-meshes large enough for the long cases, function objects on most); two builds of a case are the same
-files; blockMesh and checkMesh pass and the function objects are well formed for v1912."""
+"""Issue 56's fresh sets' candidates (experiments/settle/fresh-set, and fresh-set-2 after the first was
+spent): every builder writes a case with its user's settings; the candidates hold what their set needs
+(plain SIMPLE and SIMPLEC, the turbulence models mixed, meshes large enough for the long cases, function
+objects on most); no candidate is a case of an earlier set; two builds of a case are the same files;
+blockMesh and checkMesh pass and the function objects are well formed for v1912."""
 
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ import subprocess
 import sys
 from collections import Counter
 from pathlib import Path
+from typing import NamedTuple
 
 import pytest
 from foam_marks import HAVE_OPENFOAM
@@ -20,15 +22,47 @@ from foam_marks import HAVE_OPENFOAM
 from foam_bridge import find_openfoam
 
 ROOT = Path(__file__).resolve().parent.parent
-HERE = ROOT / "experiments" / "settle" / "fresh-set"
 #: The development cases of issue 56 and every other case of heldout-v2 and -v3: no candidate is one.
 EARLIER = ("controller/heldout-v2/cases.py", "controller/heldout-v3/cases.py")
 
 
+class Needs(NamedTuple):
+    """What a fresh set's candidates hold: at least ``simple`` plain SIMPLE and as many SIMPLEC, at least
+    ``functions`` with function objects, every mesh's cells within ``cells``, at least ``large[1]`` meshes
+    of ``large[0]`` cells or more; no case of the sets in ``earlier`` (under experiments/); ``twice``: the
+    cases built twice and compared."""
+
+    earlier: tuple[str, ...]
+    simple: int
+    functions: int
+    cells: tuple[int, int]
+    large: tuple[int, int]
+    twice: tuple[str, ...]
+
+
+SETS = {
+    "fresh-set": Needs(EARLIER, 7, 11, (1, 30000), (12000, 6),
+                       ("squareNearWall", "porousHedge", "annulusWideRKE", "squareBankInline")),
+    "fresh-set-2": Needs((*EARLIER, "settle/fresh-set/cases.py"), 8, 14, (4000, 13000), (11000, 5),
+                         ("squareTandemSST", "cylinderTandemRKE", "windbreakSST")),
+}
+
+
+@pytest.fixture(scope="module", params=list(SETS))
+def fresh_set(request) -> str:
+    return request.param
+
+
 @pytest.fixture(scope="module")
-def cases():
-    name = "settle_fresh_set_cases"
-    spec = importlib.util.spec_from_file_location(name, HERE / "cases.py")
+def needs(fresh_set) -> Needs:
+    return SETS[fresh_set]
+
+
+@pytest.fixture(scope="module")
+def cases(fresh_set):
+    name = f"settle_{fresh_set.replace('-', '_')}_cases"
+    path = ROOT / "experiments" / "settle" / fresh_set / "cases.py"
+    spec = importlib.util.spec_from_file_location(name, path)
     module = importlib.util.module_from_spec(spec)
     sys.modules[name] = module
     try:
@@ -65,25 +99,25 @@ def settings(case: Path) -> dict[str, str]:
             "functions": "\nfunctions\n{" in control}
 
 
-def test_every_builder_is_described_and_new(cases):
+def test_every_builder_is_described_and_new(cases, needs):
     assert 18 <= len(cases.CASES) <= 20
     assert set(cases.CASES) == set(cases.DESCRIPTIONS)
-    earlier = "\n".join((ROOT / "experiments" / path).read_text() for path in EARLIER)
+    earlier = "\n".join((ROOT / "experiments" / path).read_text() for path in needs.earlier)
     for name, builder in cases.CASES.items():
         doc = " ".join(builder.__doc__.split())
         assert doc.startswith(cases.DESCRIPTIONS[name][1] + "."), name  # opens with its kind
         for said in ("Re ", "endTime 3000", "Why:", "cells"):
             assert said in doc, (name, said)
-        assert f"def {name}(" not in earlier, name  # not a heldout-v2 or -v3 case's name
+        assert f"def {name}(" not in earlier, name  # not the name of a case of an earlier set
 
 
-def test_the_candidates_hold_what_the_set_needs(cases, written):
+def test_the_candidates_hold_what_the_set_needs(cases, needs, written):
     found = {name: settings(written / name) for name in cases.CASES}
     algorithms = Counter(entry["consistent"] for entry in found.values())
-    assert algorithms["no"] >= 7 and algorithms["yes"] >= 7, algorithms  # plain SIMPLE, SIMPLEC
+    assert min(algorithms["no"], algorithms["yes"]) >= needs.simple, algorithms  # plain SIMPLE, SIMPLEC
     models = Counter(entry["model"] for entry in found.values())
     assert {"kEpsilon", "realizableKE", "kOmegaSST"} <= set(models) and models["laminar"] <= 2, models
-    assert sum(entry["functions"] for entry in found.values()) >= 11
+    assert sum(entry["functions"] for entry in found.values()) >= needs.functions
     for name, entry_ in found.items():  # a user's budget and output
         assert entry_["endTime"] == "3000" and entry_["deltaT"] == "1", name
         assert entry_["writeInterval"] in ("500", "1000"), name
@@ -109,7 +143,8 @@ def test_function_objects_are_what_a_user_writes(cases, written):
 
 @pytest.mark.openfoam
 @pytest.mark.skipif(not HAVE_OPENFOAM, reason="simpleFoam not on PATH")
-@pytest.mark.parametrize("name", ["squareNearWall", "porousHedge", "annulusWideRKE", "squareBankInline"])
+@pytest.mark.parametrize(("fresh_set", "name"), [(set_, name) for set_, needs in SETS.items()
+                                                  for name in needs.twice], indirect=["fresh_set"])
 def test_a_case_builds_the_same_twice_and_meshes(cases, name, tmp_path):
     for build in ("a", "b"):
         cases.CASES[name](tmp_path / build / name)
@@ -140,10 +175,10 @@ def _only(case: Path, keep: list[str], named: list[str]) -> None:
             _foam(case, "foamDictionary", "system/controlDict", "-entry", f"functions/{other}", "-remove")
 
 
-@pytest.mark.slow  # every case built, meshed, checked and post-processed once: about a minute
+@pytest.mark.slow  # every case built, meshed, checked and post-processed once: 10-60 s a set
 @pytest.mark.openfoam
 @pytest.mark.skipif(not HAVE_OPENFOAM or not shutil.which("postProcess"), reason="OpenFOAM not on PATH")
-def test_every_case_meshes_and_its_function_objects_find_their_patches_and_points(cases, tmp_path):
+def test_every_case_meshes_and_its_function_objects_find_their_patches_and_points(cases, needs, tmp_path):
     """checkMesh passes on every mesh; probes and surface and volume averages run on the initial fields
     (postProcess, no solver): every probe inside the mesh, every patch found. forces and forceCoeffs need
     the solver's turbulence model for the viscous stress, so postProcess stops there, after reading the
@@ -155,16 +190,18 @@ def test_every_case_meshes_and_its_function_objects_find_their_patches_and_point
         report = _foam(case, "checkMesh")
         assert "Mesh OK." in report, name
         cells = int(re.search(r"^\s*cells:\s+(\d+)", report, re.M).group(1))
-        assert cells <= 30000, name
+        assert needs.cells[0] <= cells <= needs.cells[1], name
         assert f"{cells:,} cells" in " ".join(builder.__doc__.split()), name  # as its docstring says
-        large += cells >= 12000
+        large += cells >= needs.large[0]
         control = case / "system" / "controlDict"
         original = control.read_text()
         if "functions" not in original:
             continue
         named = _foam(case, "foamDictionary", "system/controlDict", "-entry", "functions",
                       "-keywords", log=False).split()
-        forces = [fo for fo in named if fo in ("forces", "forceCoeffs")]
+        types = dict(re.findall(r"^    (\w+)\n    \{\n\s+type\s+(\w+);", original, re.M))
+        assert set(types) == set(named), name
+        forces = [fo for fo in named if types[fo] in ("forces", "forceCoeffs")]  # by type: two bodies, two
         others = [fo for fo in named if fo not in forces]
         if others:
             _only(case, others, named)
@@ -180,4 +217,4 @@ def test_every_case_meshes_and_its_function_objects_find_their_patches_and_point
             assert "No valid model for viscous stress calculation" in log, (name, log[-1500:])
             assert "Cannot find any patch" not in log, name  # a wrong patch is only a warning
             control.write_text(original)
-    assert large >= 6
+    assert large >= needs.large[1]
