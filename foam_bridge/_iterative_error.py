@@ -33,9 +33,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["CONVERGED", "CONVERGING", "MODELS", "OSCILLATING", "TOO_EARLY", "WANDERING", "Estimate",
-           "QuantityTrack", "cycle_floor", "estimate", "farthest", "mean_and_half_range", "norm",
-           "steady_window"]
+__all__ = ["CONVERGED", "CONVERGING", "MODELS", "OSCILLATING", "RANGE_MARGIN", "TOO_EARLY", "WANDERING",
+           "WRITTEN_RESOLUTION", "Estimate", "QuantityTrack", "cycle_floor", "estimate", "farthest",
+           "mean_and_half_range", "norm", "steady_window"]
 
 CONVERGING = "converging"
 OSCILLATING = "oscillating"
@@ -54,8 +54,15 @@ CONTRACTION = 0.8
 #: The extrapolated error is multiplied by this: the measured rate is a window's average, and a decay that
 #: slows down later (a second, slower mode taking over) is under-predicted by it.
 SAFETY = 3.0
+#: A range model's error and half-range are this multiple of the half-range measured over its window: a
+#: wandering answer sweeps further over a longer record than the window holds (issue 56's development
+#: cases: the reference runs' last third, up to 4x the window, swept 1.05-2.1x as far as the window did).
+RANGE_MARGIN = 2.0
 #: Relative differences at or below this are round-off: the quantity no longer changes.
 ROUND_OFF = 1e-13
+#: The resolution of a function object's written value, relative to it: OpenFOAM writes 6 significant
+#: digits (writePrecision), so two values that agree to 1e-5 may still be written a unit apart.
+WRITTEN_RESOLUTION = 1e-5
 #: A period is a lag whose autocorrelation over the window is at least this.
 PERIOD_CORRELATION = 0.5
 
@@ -80,6 +87,8 @@ class Estimate:
             data["period"] = self.period
         if self.rate is not None:
             data["rate_per_iteration"] = self.rate
+        if self.model in (OSCILLATING, WANDERING):
+            data["margin"] = RANGE_MARGIN  # half_range is the window's times this
         return data
 
 
@@ -114,13 +123,18 @@ class QuantityTrack:
     iterations: list[int] = field(default_factory=list)
     differences: list[float] = field(default_factory=list)  # [0] is nan: no sample before the first
     snapshots: list[tuple[int, np.ndarray]] = field(default_factory=list)
+    #: A written value's resolution, relative (a function object prints 6 significant digits: two values
+    #: that agree to 1e-5 may be written apart); no estimate is below it.
+    resolution: float = 0.0
     scale: float = 0.0
+    floor: float = 0.0
     _stride: int = 1
     _last: np.ndarray | None = None
 
     def add(self, iteration: int, value: np.ndarray, floor: float = 0.0) -> None:
         """One sample; ``floor``: the smallest magnitude its relative errors are measured against."""
         value = np.asarray(value, dtype=np.float64)
+        self.floor = floor
         self.scale = max(float(norm(value)), floor)
         if self._last is None or self._last.shape != value.shape:
             difference = math.nan
@@ -139,6 +153,11 @@ class QuantityTrack:
     def latest(self) -> np.ndarray | None:
         return self._last
 
+    def scale_of(self, answer: np.ndarray) -> float:
+        """What an error is relative to where the answer settles at ``answer``: its norm, or the floor
+        (a value whose mean is near zero, a side force, is measured against its row, not itself)."""
+        return max(float(norm(answer)), self.floor)
+
 
 def _relative(norm: float, scale: float) -> float:
     if norm == 0:
@@ -148,7 +167,17 @@ def _relative(norm: float, scale: float) -> float:
 
 def estimate(track: QuantityTrack) -> Estimate:
     """The model that holds for ``track`` now and the error of its latest sample (see the module
-    docstring)."""
+    docstring); neither the error nor the half-range is below the track's resolution (a difference the
+    written value cannot show)."""
+    found = _estimate(track)
+    least = track.resolution
+    if found.model == TOO_EARLY or (found.error >= least and found.half_range >= least):
+        return found
+    return Estimate(found.model, max(found.error, least), found.period, max(found.half_range, least),
+                    found.window, found.rate)
+
+
+def _estimate(track: QuantityTrack) -> Estimate:
     d = np.asarray(track.differences[1:], dtype=np.float64)
     its = np.asarray(track.iterations[1:], dtype=np.int64)
     if len(d) < MIN_SAMPLES or not np.all(np.isfinite(d)):
@@ -161,15 +190,19 @@ def estimate(track: QuantityTrack) -> Estimate:
     half = _half_range(track, window, d)
     blocks = _block_drift(track, window)
     if blocks is not None:
-        ratio, step = blocks  # per block: the contraction and the latest drift
+        ratio, step, scale, tail = blocks  # per block: contraction, latest drift; the latest block's range
         # a cycle shorter than the sample interval hides from the block means and the thinned snapshots;
         # every one of the latest differences between samples holds it
-        shake = cycle_floor(d)
+        shake = cycle_floor(d) * track.scale / scale
         ahead = SAFETY * step * ratio / (1.0 - ratio)
-        if ahead >= shake:  # else the fluctuation dominates: the range model below
+        if ahead >= shake:
             return Estimate(CONVERGING, ahead + shake, window=window, rate=ratio ** (3.0 / window),
                             half_range=half)
+        # the decay has ended inside the window: what is left is the fluctuation of its latest block (the
+        # window's whole range would count the decay's tail as a swing)
+        half = min(half, max(tail, shake))
     period = _period(track, window)
+    half *= RANGE_MARGIN
     return Estimate(OSCILLATING if period else WANDERING, half, period, half, window)
 
 
@@ -180,39 +213,45 @@ def cycle_floor(d: np.ndarray) -> float:
     return 0.5 * float(np.min(d[-MIN_WINDOW:]))
 
 
-def _block_drift(track: QuantityTrack, window: int) -> tuple[float, float] | None:
+def _block_drift(track: QuantityTrack, window: int) -> tuple[float, float, float, float] | None:
     """Aitken's extrapolation on the means of the window's three blocks of snapshots (means, so that a
-    cycle or a wander on top of the trend averages out): (the contraction, the drift between the last two
-    blocks' means, relative); None where the means do not
-    contract by at least CONTRACTION per block or their first drift does not stand out of the latest
-    block's fluctuation (the range model then holds). The contraction is per block."""
+    cycle or a wander on top of the trend averages out): (the contraction per block, the drift between
+    the last two blocks' means relative to the scale, the scale: the latest block mean's, the latest
+    block's half-range relative to the scale); None where the
+    means do not contract by at least CONTRACTION per block or their first drift does not stand out of the
+    latest block's fluctuation (the range model then holds)."""
     values = steady_window(track, window)
     if len(values) < 6:
         return None
     thirds = np.array_split(np.stack(values), 3)
     means = [block.mean(axis=0) for block in thirds]
-    first = _relative(float(norm(means[1] - means[0])), track.scale)
-    second = _relative(float(norm(means[2] - means[1])), track.scale)
-    shake = _relative(farthest(thirds[2], means[2]), track.scale)
+    scale = track.scale_of(means[2])
+    first = _relative(float(norm(means[1] - means[0])), scale)
+    second = _relative(float(norm(means[2] - means[1])), scale)
+    shake = _relative(farthest(thirds[2], means[2]), scale)
     if first <= shake or second >= CONTRACTION * first:
         return None
-    return max(second / first, ROUND_OFF), second
+    return max(second / first, ROUND_OFF), second, scale, shake
 
 
 def _half_range(track: QuantityTrack, window: int, d: np.ndarray) -> float:
     """Half the range of the snapshots in the latest ``window`` iterations (their largest distance from
     their mean), or half the largest difference between samples there (a cycle shorter than the sample
-    interval), whichever is larger; relative to the quantity's scale."""
+    interval), whichever is larger; relative to the scale of their mean (where the answer settles)."""
     values = steady_window(track, window)
-    half = mean_and_half_range(values, track.scale)[1] if values else 0.0
-    return max(half, 0.5 * float(d.max()))
+    if not values:
+        return 0.5 * float(d.max())
+    mean, half = mean_and_half_range(values, track)
+    return max(half, 0.5 * float(d.max()) * track.scale / track.scale_of(mean))
 
 
-def mean_and_half_range(values: list[np.ndarray], scale: float) -> tuple[np.ndarray, float]:
-    """(the mean of some snapshots, their largest distance from it relative to ``scale``)."""
+def mean_and_half_range(values: list[np.ndarray], track: QuantityTrack,
+                        scale: float | None = None) -> tuple[np.ndarray, float]:
+    """(the mean of some of ``track``'s snapshots, their largest distance from it relative to ``scale``,
+    by default the mean's own scale)."""
     stack = np.stack(values)
     mean = stack.mean(axis=0)
-    return mean, _relative(farthest(stack, mean), scale)
+    return mean, _relative(farthest(stack, mean), track.scale_of(mean) if scale is None else scale)
 
 
 def steady_window(track: QuantityTrack, window: int, end: int | None = None) -> list[np.ndarray]:

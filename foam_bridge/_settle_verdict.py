@@ -24,6 +24,7 @@ import numpy as np
 
 from foam_bridge._iterative_error import (
     OSCILLATING,
+    RANGE_MARGIN,
     WANDERING,
     Estimate,
     QuantityTrack,
@@ -97,17 +98,18 @@ def judge(tracks: Mapping[str, QuantityTrack], iteration: int, rule: SettleRule,
     within = bool(estimates) and all(e.error <= rule.tolerance for e in estimates.values())
     cycling = {name: _cycle(tracks[name], iteration, e, rule) for name, e in estimates.items()
                if e.error > rule.tolerance}
-    cycles = bool(cycling) and all(found is not None for found in cycling.values())
-    if cycles:
-        estimates.update({name: found for name, found in cycling.items() if found is not None})
+    # steady: every quantity within the tolerance or a steady cycle (one that swings about the tolerance
+    # is one or the other from check to check, and must not restart the count each time)
+    steady = bool(estimates) and all(found is not None for found in cycling.values())
+    estimates.update({name: found for name, found in cycling.items() if found is not None})
     since.settled = (since.settled if since.settled is not None else iteration) if within else None
-    since.cycling = (since.cycling if since.cycling is not None else iteration) if cycles else None
+    since.cycling = (since.cycling if since.cycling is not None else iteration) if steady else None
     held = max(PERSIST_MIN, PERSIST_FRACTION * iteration)
     outcome = None
     if iteration >= rule.min_iterations:
         if since.settled is not None and iteration - since.settled >= held:
             outcome = SETTLED
-        elif since.cycling is not None and iteration - since.cycling >= held:
+        elif since.cycling is not None and iteration - since.cycling >= held and not within:
             outcome = OSCILLATING
     return Verdict(iteration, outcome, estimates), since
 
@@ -124,14 +126,17 @@ def _cycle(track: QuantityTrack, iteration: int, found: Estimate, rule: SettleRu
     latest, before = (steady_window(track, width, iteration - k * width) for k in (0, 1))
     if len(latest) < 3 or len(before) < 3:
         return None
-    (mean_a, half_a), (mean_b, half_b) = (mean_and_half_range(v, track.scale) for v in (latest, before))
-    floors = [cycle_floor(_differences(track, iteration - k * width, width)) for k in (0, 1)]
+    mean, overall = mean_and_half_range(before + latest, track)
+    scale = track.scale_of(mean)  # the two windows measured alike: against where the cycle sits
+    (mean_a, half_a), (mean_b, half_b) = (mean_and_half_range(v, track, scale) for v in (latest, before))
+    floors = [cycle_floor(_differences(track, iteration - k * width, width)) * track.scale / scale
+              for k in (0, 1)]
     half_a, half_b = max(half_a, floors[0]), max(half_b, floors[1])
     half = max(half_a, half_b)
-    shift = float(norm(mean_a - mean_b)) / track.scale if track.scale > 0 else math.inf
+    shift = float(norm(mean_a - mean_b)) / scale if scale > 0 else math.inf
     if shift > STABLE * half or abs(half_a - half_b) > STABLE * half:
         return None
-    overall = max(mean_and_half_range(before + latest, track.scale)[1], found.half_range)
+    overall = max(RANGE_MARGIN * overall, found.half_range)
     return Estimate(found.model, overall, found.period, overall, 2 * width)
 
 

@@ -21,47 +21,86 @@ from pathlib import Path
 
 import numpy as np
 
-from foam_bridge import QuantityTrack, SettleRule
-from foam_bridge._answer_monitor import FIELD_SNAPSHOTS, SAMPLE_INTERVAL
+from foam_bridge import QuantityTrack, SettleRule, TableReader, quantity_name, row_scale, time_series
+from foam_bridge._answer_monitor import (
+    FIELD_SNAPSHOTS,
+    SAMPLE_FUNCTION,
+    SAMPLE_INTERVAL,
+    VALUE_SNAPSHOTS,
+    VALUE_STRIDE,
+)
+from foam_bridge._iterative_error import WRITTEN_RESOLUTION
 from foam_bridge._settle_verdict import judge, judge_due
 
 
-def replay(directory: Path, tolerance: float, verbose: bool = False) -> dict:
+def _value_rows(case: Path, start: int, budget: int) -> list[tuple[int, str, np.ndarray, float]]:
+    """Every function-object row a settle run reads (every VALUE_STRIDE-th), up to the budget, in
+    iteration order: (iteration, quantity, value, the row's scale floor)."""
+    rows = []
+    for key, path in time_series(case).items():
+        if key.startswith(f"{SAMPLE_FUNCTION}/"):
+            continue
+        for time_value, row, columns in TableReader(path).read(VALUE_STRIDE) or []:
+            at = int(round(time_value)) - start
+            if at <= budget:
+                floor = row_scale(list(columns.values()))
+                rows += [(at, quantity_name(key, row, column), np.asarray(value, dtype=np.float64), floor)
+                         for column, value in columns.items()]
+    return sorted(rows, key=lambda row: row[0])
+
+
+def replay(directory: Path, tolerance: float, verbose: bool = False, fields_only: bool = False) -> dict:
     record = json.loads((directory / "reference.json").read_text())
     samples = directory / "samples"
     its = np.load(samples / "iterations.npy")
     budget = record["budget"]
     keep = (its <= budget) & (its % SAMPLE_INTERVAL == 0)  # what a settle run samples
     stacks = {name: np.load(samples / f"{name}.npy", mmap_mode="r") for name in record["fields"]}
-    truth = {name: record["fields"][name]["errors"] for name in record["fields"]}
+    truth = {name: entry["errors"] for name, entry in record["fields"].items()}
+    halves = {name: entry["half_range_last_third"] for name, entry in record["fields"].items()}
     tracks = {name: QuantityTrack(name, max_snapshots=FIELD_SNAPSHOTS) for name in record["fields"]}
+    values = [] if fields_only else _value_rows(directory / "case", record["start"], budget)
+    if not fields_only:
+        truth.update({name: entry["errors"] for name, entry in record["values"].items()})
+        halves.update({name: entry["half_range_last_third"] for name, entry in record["values"].items()})
     since, stop, outcome = None, None, None
     ratios, below = [], 0
     checks = 0
     last = None
+    cursor = 0
     for index in np.flatnonzero(keep):
         n = int(its[index])
-        for name, track in tracks.items():
-            track.add(n, np.asarray(stacks[name][index], dtype=np.float64))
+        for name in record["fields"]:
+            tracks[name].add(n, np.asarray(stacks[name][index], dtype=np.float64))
+        while cursor < len(values) and values[cursor][0] <= n:
+            at, name, value, floor = values[cursor]
+            if name not in tracks:
+                tracks[name] = QuantityTrack(name, VALUE_SNAPSHOTS, resolution=WRITTEN_RESOLUTION)
+            tracks[name].add(at, value, floor)
+            cursor += 1
         if not judge_due(n, last):
             continue
         last = n
         verdict, since = judge(tracks, n, SettleRule(tolerance), since)
         for name, found in verdict.estimates.items():
-            true = truth[name][index]
+            true = truth[name][index] if name in truth and index < len(truth[name]) else None
             if np.isfinite(found.error) and true and true > 1e-7:
                 ratios.append(found.error / true)
                 below += found.error < true
                 checks += 1
         if verbose and n % 100 == 0:
             print(n, {k: f"{v.model[:4]} {v.error:.1e}/{truth[k][index]:.1e}" for k, v in
-                      verdict.estimates.items()})
+                      verdict.estimates.items() if k in truth})
         if verdict.outcome is not None and stop is None:
             stop, outcome = n, verdict.outcome
-            stop_truth = {name: truth[name][index] for name in tracks}
-            stop_estimate = {name: e.error for name, e in verdict.estimates.items()}
+            stop_truth = {name: truth[name][index] for name in tracks if name in truth}
+            stop_estimate = {name: e.error for name, e in verdict.estimates.items() if name in truth}
             stop_models = {name: e.model for name, e in verdict.estimates.items()}
-    worst = np.max(np.asarray([truth[name] for name in tracks]), axis=0)
+    if stop is None:  # to the budget: the last verdict is the report
+        stop_truth = {name: truth[name][index] for name in tracks if name in truth}
+        stop_estimate = {name: e.error for name, e in verdict.estimates.items() if name in truth}
+        stop_models = {name: e.model for name, e in verdict.estimates.items()}
+    worst = np.max(np.asarray([truth[name][:len(its[keep])] for name in tracks if name in truth]), axis=0)
     within = np.flatnonzero(worst > tolerance)
     first = int(its[within[-1] + 1]) if len(within) and within[-1] + 1 < len(worst) else (
         int(its[0]) if not len(within) else None)
@@ -69,36 +108,40 @@ def replay(directory: Path, tolerance: float, verbose: bool = False) -> dict:
               "criterion_met_at": record["criterion_met_at"], "stop": stop, "outcome": outcome,
               "first_within": first, "median_ratio": float(np.median(ratios)) if ratios else None,
               "below_share": below / checks if checks else None}
-    if stop is not None:
-        result.update(stop_truth=stop_truth, stop_estimate=stop_estimate, stop_models=stop_models,
-                      reference_half_range={name: record["fields"][name]["half_range_last_third"]
-                                            for name in tracks})
+    result.update(stop_truth=stop_truth, stop_estimate=stop_estimate, stop_models=stop_models,
+                  reference_half_range={name: halves[name] for name in stop_truth})
     return result
 
 
 def summary(results: list[dict], tolerance: float) -> dict:
-    """Over the cases: the estimate / truth ratio of every (case, quantity) at the stop (median, share
-    below 1), the settled stops against 1.5 x the first iteration within the tolerance, the oscillating
+    """Over the cases, as evaluate.py's table counts them: every (case, quantity) at the stop or the
+    budget (the share where the estimate is at or above the truth, the median estimate / truth, the
+    misses), the settled stops against 1.5 x the first iteration within the tolerance, the oscillating
     stops' half-ranges against the reference's, and the iterations against the budget."""
-    ratios, late, short, spent = [], [], [], []
+    pairs, misses, late, short, spent = [], [], [], [], []
     for found in results:
         stop = found["stop"] or found["budget"]
         spent.append(stop / found["budget"])
-        if found["stop"] is None:
-            continue
         for name, true in found["stop_truth"].items():
-            ratios.append(found["stop_estimate"][name] / max(true, 1e-12))
+            guess = found["stop_estimate"].get(name)
+            if guess is None or not np.isfinite(guess) or true is None:
+                continue
+            pairs.append((guess, true))
+            if guess < true:
+                misses.append(f"{found['case']} {name} {found['stop_models'].get(name)} "
+                              f"{guess:.2g} < {true:.2g}")
         if found["outcome"] == "settled":
             first = found["first_within"]
             if first is None or stop > 1.5 * first or max(found["stop_truth"].values()) > tolerance:
-                late.append(found["case"])
-        else:
-            short += [f"{found['case']} {name}" for name, half in found["reference_half_range"].items()
-                      if found["stop_estimate"][name] < half]
-    ratios = np.asarray(ratios)
+                late.append(f"{found['case']} stop {stop} first {first}")
+        elif found["outcome"] is not None:
+            short += [f"{found['case']} {name} {found['stop_estimate'].get(name, 0):.2g} < {half:.2g}"
+                      for name, half in found["reference_half_range"].items()
+                      if found["stop_estimate"].get(name, 0) < half]
+    ratios = [guess / true for guess, true in pairs if true > 0]
     return {"cases": len(results), "median_iterations_over_budget": float(np.median(spent)),
-            "pairs": len(ratios), "median_ratio": float(np.median(ratios)) if len(ratios) else None,
-            "share_below": float(np.mean(ratios < 1)) if len(ratios) else None,
+            "pairs": len(pairs), "share_held": float(np.mean([g >= t for g, t in pairs])) if pairs else None,
+            "median_ratio": float(np.median(ratios)) if ratios else None, "misses": misses,
             "settled_late_or_off": late, "oscillating_half_range_short": short}
 
 
@@ -107,11 +150,13 @@ def main() -> None:
     parser.add_argument("runs", type=Path, nargs="+")
     parser.add_argument("--tolerance", type=float, default=1e-3)
     parser.add_argument("--verbose", action="store_true")
+    parser.add_argument("--fields-only", action="store_true", help="the fields alone, no function objects")
     args = parser.parse_args()
     results = []
     for directory in args.runs:
-        results.append(replay(directory, args.tolerance, args.verbose))
-        print(json.dumps(results[-1], default=lambda v: float(f"{v:.3g}")))
+        results.append(replay(directory, args.tolerance, args.verbose, args.fields_only))
+        print(json.dumps({k: results[-1][k] for k in ("case", "kind", "stop", "outcome", "first_within",
+                                                      "median_ratio", "below_share")}))
     print(json.dumps(summary(results, args.tolerance), default=lambda v: float(f"{v:.3g}")))
 
 
