@@ -391,7 +391,11 @@ def test_close_after_an_interrupted_step_kills_the_busy_worker_at_once(tmp_path)
     env.close()
     assert time.monotonic() - start < STOP_LIMIT_S
     assert worker.exitcode == -signal.SIGKILL  # killed, not asked
-    assert not _alive(solver) and not env.work_dir.exists()
+    # the kill reaches the (stopped) solver through its parent-death signal; the kernel tears it down a
+    # moment later (seen mid-exit, memory released and parent gone, 0.2 s after close returned): a solver
+    # that close() missed stays stopped, and alive, for good
+    assert _gone_within(lambda: not _alive(solver), 1.0)
+    assert not env.work_dir.exists()
 
 
 @needs_openfoam
