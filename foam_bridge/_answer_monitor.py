@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 
 from foam_bridge._export import POST_PROCESSING
-from foam_bridge._fields import read_internal_field, time_directories
+from foam_bridge._fields import read_internal_field, time_directories, time_names
 from foam_bridge._function_objects import TableReader, quantity_name, row_scale, time_series
 from foam_bridge._iterative_error import QuantityTrack
 from foam_bridge._openfoam import find_openfoam
@@ -165,6 +165,10 @@ class AnswerMonitor:
         self.cpu_s = 0.0  # this process's CPU seconds in poll: the monitor's own cost beside the solver's
         self._sources = _Sources({}, [], set())
         self._sampled_to = 0  # the iteration of the last field sample read
+        self._listed: int | None = None  # the log's iteration at the last listing of the time directories
+        self._retry = False  # the last sample found could not be read: list again at the next poll
+        self._spacing: dict[str, tuple[int, float, float]] = {}  # _rare's (iterations, least, most spacing)
+        self._values: dict[tuple[str, str, str], QuantityTrack] = {}  # a function-object value's track
 
     def install(self) -> None:
         install_monitor(self.case, self.fields, self.interval, self.ranks)
@@ -187,19 +191,27 @@ class AnswerMonitor:
                 self._track(name).add(time, value)
             self._sampled_to = time
             self._judge(time, final=ended and index == len(ready) - 1)
+        self._retry = bool(ready) and ready[-1][0] > self._sampled_to
         if ended:
             self._read_values()
         self.cpu_s += process_time() - started
         return self.stop_due if self.stop_due is not None and due_before is None else None
 
     def _ready_samples(self, iteration: int, ended: bool) -> list[tuple[int, list[Path]]]:
+        """The time directories after the last sample read whose iteration the log shows complete. Not
+        listed again while the log shows the same iteration (a slow case's polls): simpleFoam writes an
+        iteration's directories before it prints the next ``Time =``, so none can have become ready since
+        the last listing, unless its last sample could not be read then (it is tried again)."""
+        if not ended and iteration == self._listed and not self._retry:
+            return []
+        self._listed = iteration
         roots = _roots(self.case, self.ranks)
         ready = []
-        for time, directory in time_directories(roots[0]):
+        for time, name in time_names(roots[0]):
             at = int(round(time)) - self.start
             if at <= max(0, self._sampled_to) or (not ended and at >= iteration) or time != round(time):
                 continue  # not after the start, read already (a full write kept), or not complete yet
-            ready.append((at, [root / directory.name for root in roots]))
+            ready.append((at, [root / name for root in roots]))
         return ready
 
     def _read_fields(self, directories: list[Path]) -> dict[str, np.ndarray] | None:
@@ -235,7 +247,10 @@ class AnswerMonitor:
                 at = int(round(time)) - self.start
                 floor = row_scale(list(columns.values()))
                 for column, value in columns.items():
-                    self._track(quantity_name(key, row, column)).add(at, np.asarray(value), floor)
+                    track = self._values.get((key, row, column))
+                    if track is None:
+                        track = self._values[key, row, column] = self._track(quantity_name(key, row, column))
+                    track.add(at, np.asarray(value), floor)
 
     def _follow_files(self) -> None:
         for key, path in time_series(self.case).items():
@@ -257,12 +272,26 @@ class AnswerMonitor:
         at write times only): too rarely to follow, so not judged (noted once)."""
         if track.name in self.fields or len(track.iterations) < 2:
             return False
-        spacing = float(np.median(np.diff(track.iterations)))
+        spacing = self._median_spacing(track)
         rare = spacing > RARE_SAMPLES * self.interval
-        note = f"{track.name}: written every {spacing:g} iterations, too rarely to follow: not judged"
-        if rare and note not in self._sources.notes:
-            self._sources.notes.append(note)
+        if rare:
+            note = f"{track.name}: written every {spacing:g} iterations, too rarely to follow: not judged"
+            if note not in self._sources.notes:
+                self._sources.notes.append(note)
         return rare
+
+    def _median_spacing(self, track: QuantityTrack) -> float:
+        """The median of the iterations between the track's samples. Its least and most spacing are kept
+        up to date sample by sample: where they are equal (a value written at every row followed) that is
+        the median, without a median over the whole history at every judgement."""
+        its = track.iterations
+        seen, least, most = self._spacing.get(track.name, (1, math.inf, -math.inf))
+        if seen > len(its):  # not the history it was kept for
+            seen, least, most = 1, math.inf, -math.inf
+        for before, after in zip(its[seen - 1:-1], its[seen:], strict=True):
+            least, most = min(least, after - before), max(most, after - before)
+        self._spacing[track.name] = (len(its), least, most)
+        return float(least) if least == most else float(np.median(np.diff(its)))
 
     def request_stop(self) -> None:
         request_stop(self.case, self.fields, self.interval, self.ranks)

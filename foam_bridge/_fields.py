@@ -15,12 +15,14 @@ of the field they stop at; :func:`relative_l2` measures that against a long refe
 from __future__ import annotations
 
 import gzip
+import os
 import re
 from pathlib import Path
 
 import numpy as np
 
-__all__ = ["final_field", "read_internal_field", "relative_l2", "time_directories", "time_directory"]
+__all__ = ["final_field", "read_internal_field", "relative_l2", "time_directories", "time_directory",
+           "time_names"]
 
 #: The start of a non-uniform internal field: its element type and count.
 _NONUNIFORM = re.compile(rb"internalField\s+nonuniform\s+List<(\w+)>\s*(\d+)\s*\(")
@@ -29,14 +31,21 @@ _WIDTH = {b"scalar": 1, b"vector": 3, b"symmTensor": 6, b"tensor": 9, b"spherica
 
 def time_directories(case: Path) -> list[tuple[float, Path]]:
     """The case's time directories (numeric names), earliest first."""
+    return [(value, Path(case, name)) for value, name in time_names(case)]
+
+
+def time_names(case: Path) -> list[tuple[float, str]]:
+    """(time, name) of the case's time directories, earliest first: one scandir, no stat or path per
+    entry (the answer monitor lists the case every poll: foam_bridge._answer_monitor)."""
     found = []
-    for path in Path(case).iterdir():
-        try:
-            value = float(path.name)
-        except ValueError:
-            continue
-        if path.is_dir():
-            found.append((value, path))
+    with os.scandir(case) as entries:
+        for entry in entries:
+            try:
+                value = float(entry.name)
+            except ValueError:
+                continue
+            if entry.is_dir():  # follows a symlink, as Path.is_dir
+                found.append((value, entry.name))
     return sorted(found)
 
 
@@ -80,17 +89,17 @@ def read_internal_field(path: Path) -> tuple[np.ndarray, bool] | None:
     None if it is missing or unreadable. A uniform field comes back as its one value. Binary fields of
     64-bit scalars are read straight from the bytes (the answer monitor reads one every few iterations:
     foam_bridge._answer_monitor); anything else through foamlib."""
-    found = [p for p in (path, path.with_name(path.name + ".gz")) if p.is_file()]
-    if not found:
+    found = next((p for p in (path, path.with_name(path.name + ".gz")) if p.is_file()), None)
+    if found is None:
         return None
     try:
-        data = found[0].read_bytes()
-        if found[0].suffix == ".gz":
+        data = found.read_bytes()
+        if found.suffix == ".gz":
             data = gzip.decompress(data)
     except OSError:
         return None
     fast = _binary_internal(data)
-    return (fast, False) if fast is not None else _foamlib_internal(found[0])
+    return (fast, False) if fast is not None else _foamlib_internal(found)
 
 
 def _binary_internal(data: bytes) -> np.ndarray | None:

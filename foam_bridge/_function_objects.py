@@ -15,6 +15,7 @@ side force of 1e-24 in a 2-D case) from turning round-off into a huge relative d
 from __future__ import annotations
 
 import math
+import os
 import re
 from collections.abc import Sequence
 from pathlib import Path
@@ -72,17 +73,38 @@ def time_series(case: Path) -> dict[str, Path]:
     <startTime>/<file>``), results only (not NOT_RESULTS). A restart starts a new start-time directory,
     so the latest holding a file is the one with its final values."""
     root = case / POST_PROCESSING
-    latest: dict[str, tuple[float, Path]] = {}
-    for path in sorted(root.rglob("*")) if root.is_dir() else ():
-        if not path.is_file() or path.name in NOT_RESULTS:
+    latest: dict[str, tuple[float, tuple[str, ...]]] = {}
+    for parts in sorted(_files(str(root), ())):  # in path order, as sorted(root.rglob("*")) gives them
+        if parts[-1] in NOT_RESULTS:
             continue
-        parts = path.relative_to(root).parts
         at = max((i for i, part in enumerate(parts[:-1]) if _number(part) is not None), default=None)
         start = -math.inf if at is None else float(parts[at])
         key = "/".join(part for i, part in enumerate(parts) if i != at)
         if key not in latest or start >= latest[key][0]:
-            latest[key] = (start, path)
-    return {key: path for key, (_, path) in latest.items()}
+            latest[key] = (start, parts)
+    return {key: root.joinpath(*parts) for key, (_, parts) in latest.items()}
+
+
+def _files(directory: str, parts: tuple[str, ...]) -> list[tuple[str, ...]]:
+    """The files under ``directory`` (their path parts below it), as ``Path.rglob("*")`` finds them:
+    symlinks to files count, symlinked directories are not entered; a directory that cannot be read
+    holds nothing. One scandir per directory and no stat per regular file: the answer monitor walks
+    postProcessing/ once a sample (foam_bridge._answer_monitor)."""
+    found = []
+    try:
+        with os.scandir(directory) as entries:
+            listed = list(entries)
+    except OSError:
+        return found
+    for entry in listed:
+        try:
+            if entry.is_dir() and not entry.is_symlink():
+                found += _files(entry.path, (*parts, entry.name))
+            elif entry.is_file():
+                found.append((*parts, entry.name))
+        except OSError:
+            continue
+    return found
 
 
 def final_rows(path: Path) -> Table | None:
@@ -108,6 +130,8 @@ class TableReader:
     def __init__(self, path: Path) -> None:
         self.path, self._offset, self._headers = path, 0, []
         self._failed = False
+        self._timed = False  # a "# Time" header came
+        self._columns: dict[int, list[tuple[bool, str]]] = {}  # _column_names' of a row of so many cells
 
     def read(self, stride: int = 1) -> list[tuple[float, str, dict[str, tuple[float, ...]]]] | None:
         """The rows completed since the last call; ``stride``: only those whose time is a multiple of it
@@ -127,54 +151,67 @@ class TableReader:
         except UnicodeDecodeError:
             self._failed = True
             return None
-        if stride > 1:
-            lines = [line for line in lines if line.startswith("#") or _on_stride(line, stride)]
-        rows = self.parse(lines)
+        rows = self._rows(lines, stride)
         self._failed = rows is None
         return rows
 
     def parse(self, lines: Sequence[str]) -> list[tuple[float, str, dict[str, tuple[float, ...]]]] | None:
         """The rows of ``lines`` (the headers met so far name their columns), in order; None if a row does
         not start with a time or no ``# Time`` header came before it."""
+        return self._rows(lines, 1)
+
+    def _rows(self, lines: Sequence[str],
+              stride: int) -> list[tuple[float, str, dict[str, tuple[float, ...]]]] | None:
+        """:meth:`parse` of the rows whose time is a multiple of ``stride`` (a row that does not start with
+        a number is parsed: it ends the table); the others are skipped unparsed."""
         rows = []
         for line in lines:
             if line.startswith("#"):
-                self._headers.append(_CELL.findall(line.lstrip("#")))
+                header = _CELL.findall(line.lstrip("#"))
+                self._headers.append(header)
+                self._timed = self._timed or bool(header[:1] and header[0].lower() == "time")
+                self._columns.clear()
                 continue
-            if not line.strip():
+            head = line.split(None, 1)  # empty: a blank line
+            if not head or (stride > 1 and not _on_stride(head[0], stride)):
                 continue
             cells = _CELL.findall(line)
             time = _number(cells[0])
-            if time is None or not any(h[:1] and h[0].lower() == "time" for h in self._headers):
+            if time is None or not self._timed:
                 return None
-            # the column names: the last header line with one name per cell (probes name them on a
-            # "# Probe 0 1" line above "# Time"), else the cells' positions
-            names = next((h[1:] for h in reversed(self._headers) if len(h) == len(cells)),
-                         [f"column {i}" for i in range(1, len(cells))])
-            rows.append((time, *_row_values(cells[1:], names)))
+            rows.append((time, *_row_values(cells[1:], self._column_names(len(cells)))))
         return rows
 
+    def _column_names(self, count: int) -> list[tuple[bool, str]]:
+        """(discrete?, value name) of a row's ``count`` - 1 value columns. Their names: the last header
+        line with one name per cell (probes name them on a "# Probe 0 1" line above "# Time"), else the
+        cells' positions."""
+        if count not in self._columns:
+            names = next((h[1:] for h in reversed(self._headers) if len(h) == count),
+                         [f"column {i}" for i in range(1, count)])
+            self._columns[count] = [(name.startswith(DISCRETE_COLUMNS), _vector_name(name)) for name in names]
+        return self._columns[count]
 
-def _on_stride(line: str, stride: int) -> bool:
-    """Whether a row's time (its first cell) is a multiple of ``stride``; a row that does not start with a
-    number is kept (parse decides what it is)."""
-    head = line.split(None, 1)[0] if line.strip() else ""
+
+def _on_stride(head: str, stride: int) -> bool:
+    """Whether a row whose first cell is ``head`` has a time that is a multiple of ``stride``; a row that
+    does not start with a number is kept (parse decides what it is)."""
     time = _number(head)
     return time is None or round(time) % stride == 0
 
 
-def _row_values(cells: Sequence[str], names: Sequence[str]) -> tuple[str, dict[str, tuple[float, ...]]]:
-    """(the row's key: its text cells, {column: value}); a vector cell is one value, its components."""
+def _row_values(cells: Sequence[str],
+                columns: Sequence[tuple[bool, str]]) -> tuple[str, dict[str, tuple[float, ...]]]:
+    """(the row's key: its text cells, {column: value}) of its cells and columns (discrete?, value name);
+    a vector cell is one value, its components."""
     text: list[str] = []
     values: dict[str, tuple[float, ...]] = {}
-    for cell, name in zip(cells, names, strict=True):
+    for cell, (discrete, name) in zip(cells, columns, strict=True):
         numbers = _numbers(cell)
         if numbers is None:
             text.append(cell)
-        elif name.startswith(DISCRETE_COLUMNS):
-            continue
-        else:
-            values[_vector_name(name)] = tuple(numbers)
+        elif not discrete:
+            values[name] = numbers
     return " ".join(text), values
 
 
@@ -184,10 +221,10 @@ def _vector_name(name: str) -> str:
     return inner[0].rsplit("_", 1)[0] if inner else name
 
 
-def _numbers(cell: str) -> list[float] | None:
+def _numbers(cell: str) -> tuple[float, ...] | None:
     inner = cell[1:-1] if cell.startswith("(") and cell.endswith(")") else cell
     try:
-        return [float(token) for token in inner.split()]
+        return tuple(map(float, inner.split()))
     except ValueError:
         return None
 
