@@ -38,7 +38,7 @@ import numpy as np
 from foam_bridge._export import POST_PROCESSING
 from foam_bridge._fields import read_internal_field, time_directories, time_names
 from foam_bridge._function_objects import TableReader, quantity_name, row_scale, time_series
-from foam_bridge._iterative_error import QuantityTrack
+from foam_bridge._iterative_error import WRITTEN_RESOLUTION, QuantityTrack
 from foam_bridge._openfoam import find_openfoam
 from foam_bridge._settle_verdict import SettleRule, Verdict, _Since, judge, judge_due
 from foam_bridge._template import run_application
@@ -230,8 +230,10 @@ class AnswerMonitor:
 
     def _track(self, name: str) -> QuantityTrack:
         if name not in self.tracks:
-            keep = FIELD_SNAPSHOTS if name in self.fields else VALUE_SNAPSHOTS
-            self.tracks[name] = QuantityTrack(name, max_snapshots=keep)
+            if name in self.fields:  # binary, full precision
+                self.tracks[name] = QuantityTrack(name, max_snapshots=FIELD_SNAPSHOTS)
+            else:  # written with 6 significant digits
+                self.tracks[name] = QuantityTrack(name, VALUE_SNAPSHOTS, resolution=WRITTEN_RESOLUTION)
         return self.tracks[name]
 
     def _read_values(self) -> None:

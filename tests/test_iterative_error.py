@@ -170,3 +170,11 @@ def test_nothing_stops_before_the_minimum_or_on_a_drift() -> None:
     flat = {n: LIMIT for n in range(5, 2001, 5)}
     stop, outcome = feed(flat, SettleRule(1e-3, min_iterations=300))
     assert outcome == SETTLED and stop >= 300
+
+
+def test_the_monitor_follows_function_object_values_at_their_written_resolution(tmp_path) -> None:
+    from foam_bridge._answer_monitor import AnswerMonitor
+
+    monitor = AnswerMonitor(tmp_path, ["U"])
+    assert monitor._track("probes/p 0").resolution == WRITTEN_RESOLUTION
+    assert monitor._track("U").resolution == 0.0  # a field is read in binary, at full precision
