@@ -152,6 +152,10 @@ def table(rows_path: Path, references: Path, arrays: Path, out: Path) -> None:
             continue
         judged.append({**judge_row(row, reference, arrays),
                        "algorithm": "SIMPLEC" if reference["consistent"] else "SIMPLE"})
+    solved = {row["case"] for row in rows}
+    for ref_path in sorted(references.glob("*.json")):  # every candidate, run or not
+        if ref_path.stem not in solved:
+            left_out.append((ref_path.stem, why_out(json.loads(ref_path.read_text())) or "not solved"))
     lines = ["| case | algorithm | outcome | iterations / budget | first within 1e-3 | stop / first | "
              "true error (max) | estimate (max) | estimate >= true | half-range short | solver CPU s | "
              "monitor CPU s |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
