@@ -28,6 +28,7 @@ scale floor (solve's agreement: a side force of 1e-24 is measured against the ro
 
 from __future__ import annotations
 
+import bisect
 import math
 from dataclasses import dataclass, field
 
@@ -116,13 +117,13 @@ def _finite(value: float) -> float | None:
 class QuantityTrack:
     """A quantity's history: every sample's iteration and relative difference from the sample before, and
     snapshots of its values, thinned (every other one dropped) whenever more than ``max_snapshots`` are
-    kept, so that they cover the whole run at a coarser and coarser stride."""
+    kept, so that they cover the whole run at a coarser and coarser stride. The snapshots are the rows of
+    one array, so that a window of them is a view, not a copy."""
 
     name: str
     max_snapshots: int = 256
     iterations: list[int] = field(default_factory=list)
     differences: list[float] = field(default_factory=list)  # [0] is nan: no sample before the first
-    snapshots: list[tuple[int, np.ndarray]] = field(default_factory=list)
     #: A written value's resolution, relative (a function object prints 6 significant digits: two values
     #: that agree to 1e-5 may be written apart); no estimate is below it.
     resolution: float = 0.0
@@ -130,6 +131,8 @@ class QuantityTrack:
     floor: float = 0.0
     _stride: int = 1
     _last: np.ndarray | None = None
+    _snapshot_its: list[int] = field(default_factory=list)  # the snapshots' iterations, for bisect
+    _rows: np.ndarray | None = None  # the snapshots, the first len(_snapshot_its) rows
 
     def add(self, iteration: int, value: np.ndarray, floor: float = 0.0) -> None:
         """One sample; ``floor``: the smallest magnitude its relative errors are measured against."""
@@ -144,10 +147,33 @@ class QuantityTrack:
         self.differences.append(difference)
         self._last = value
         if (len(self.iterations) - 1) % self._stride == 0:
-            self.snapshots.append((int(iteration), value.copy()))
-        if len(self.snapshots) > self.max_snapshots:
-            self.snapshots = self.snapshots[::2]
+            self._keep(int(iteration), value)
+
+    def _keep(self, iteration: int, value: np.ndarray) -> None:
+        count = len(self._snapshot_its)
+        if self._rows is None or self._rows.shape[1:] != value.shape:  # (a new shape starts afresh)
+            self._rows, self._snapshot_its, count = np.empty((8, *value.shape)), [], 0
+        elif count == len(self._rows):  # grow as a list does, to one more than the most kept
+            grown = np.empty((min(2 * count, self.max_snapshots + 1), *value.shape))
+            grown[:count] = self._rows
+            self._rows = grown
+        self._rows[count] = value
+        self._snapshot_its.append(iteration)
+        if count + 1 > self.max_snapshots:
+            kept = self._rows[:count + 1:2].copy()
+            self._rows[:len(kept)] = kept
+            self._snapshot_its = self._snapshot_its[::2]
             self._stride *= 2
+
+    def window(self, width: int, end: int | None = None) -> tuple[list[int], np.ndarray]:
+        """The iterations and the values (rows of one array, a view) of the snapshots in the ``width``
+        iterations up to ``end`` (default the latest sample)."""
+        last = self.iterations[-1] if end is None else end
+        lo = bisect.bisect_right(self._snapshot_its, last - width)
+        hi = bisect.bisect_right(self._snapshot_its, last)
+        if self._rows is None:
+            return [], np.empty((0,))
+        return self._snapshot_its[lo:hi], self._rows[lo:hi]
 
     @property
     def latest(self) -> np.ndarray | None:
@@ -223,7 +249,7 @@ def _block_drift(track: QuantityTrack, window: int) -> tuple[float, float, float
     values = steady_window(track, window)
     if len(values) < 6:
         return None
-    thirds = np.array_split(np.stack(values), 3)
+    thirds = np.array_split(values, 3)
     means = [block.mean(axis=0) for block in thirds]
     scale = track.scale_of(means[2])
     first = _relative(float(norm(means[1] - means[0])), scale)
@@ -239,38 +265,37 @@ def _half_range(track: QuantityTrack, window: int, d: np.ndarray) -> float:
     their mean), or half the largest difference between samples there (a cycle shorter than the sample
     interval), whichever is larger; relative to the scale of their mean (where the answer settles)."""
     values = steady_window(track, window)
-    if not values:
+    if not len(values):
         return 0.5 * float(d.max())
     mean, half = mean_and_half_range(values, track)
     return max(half, 0.5 * float(d.max()) * track.scale / track.scale_of(mean))
 
 
-def mean_and_half_range(values: list[np.ndarray], track: QuantityTrack,
+def mean_and_half_range(stack: np.ndarray, track: QuantityTrack,
                         scale: float | None = None) -> tuple[np.ndarray, float]:
-    """(the mean of some of ``track``'s snapshots, their largest distance from it relative to ``scale``,
-    by default the mean's own scale)."""
-    stack = np.stack(values)
+    """(the mean of some of ``track``'s snapshots, stacked, their largest distance from it relative to
+    ``scale``, by default the mean's own scale)."""
     mean = stack.mean(axis=0)
     return mean, _relative(farthest(stack, mean), track.scale_of(mean) if scale is None else scale)
 
 
-def steady_window(track: QuantityTrack, window: int, end: int | None = None) -> list[np.ndarray]:
-    """The snapshots of ``track`` in the ``window`` iterations up to ``end`` (default its latest)."""
-    last = track.iterations[-1] if end is None else end
-    return [value for it, value in track.snapshots if last - window < it <= last]
+def steady_window(track: QuantityTrack, window: int, end: int | None = None) -> np.ndarray:
+    """The snapshots of ``track`` in the ``window`` iterations up to ``end`` (default its latest),
+    stacked."""
+    return track.window(window, end)[1]
 
 
 def _period(track: QuantityTrack, window: int) -> int | None:
     """The period, in iterations, of a quantity sampled at a regular stride over ``window``: the first lag
     whose autocorrelation is a local maximum of at least PERIOD_CORRELATION; None where there is none (a
     field sampled less often than it cycles shows no period: its half-range still holds the cycle)."""
-    points = [(it, v) for it, v in track.snapshots if track.iterations[-1] - window < it]
-    if len(points) < 6:
+    its, stack = track.window(window)
+    if len(its) < 6:
         return None
-    steps = np.diff([it for it, _ in points])
+    steps = np.diff(its)
     if np.any(steps != steps[0]):
         return None
-    stack = np.stack([v for _, v in points]).reshape(len(points), -1)
+    stack = stack.reshape(len(its), -1)
     series = stack[:, 0] if stack.shape[1] == 1 else np.sqrt(np.einsum("ij,ij->i", stack, stack))
     series = series - series.mean()
     lagged = np.correlate(series, series, "full")[len(series) - 1:]  # lag 0, 1, ...: no BLAS

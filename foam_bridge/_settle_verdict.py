@@ -16,6 +16,7 @@ Nothing stops before MIN_ITERATIONS: a flow still starting up may not have reach
 
 from __future__ import annotations
 
+import bisect
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -32,7 +33,6 @@ from foam_bridge._iterative_error import (
     estimate,
     mean_and_half_range,
     norm,
-    steady_window,
 )
 
 __all__ = ["DEFAULT_TOLERANCE", "MIN_ITERATIONS", "SETTLED", "SettleRule", "Verdict", "judge", "judge_due"]
@@ -123,10 +123,12 @@ def _cycle(track: QuantityTrack, iteration: int, found: Estimate, rule: SettleRu
     width = max(MIN_CYCLE_WINDOW, int(CYCLE_FRACTION * iteration))
     if 2 * width > iteration - track.iterations[0]:
         return None
-    latest, before = (steady_window(track, width, iteration - k * width) for k in (0, 1))
+    its, both = track.window(2 * width, iteration)  # the window before the latest, then the latest
+    split = bisect.bisect_right(its, iteration - width)
+    before, latest = both[:split], both[split:]
     if len(latest) < 3 or len(before) < 3:
         return None
-    mean, overall = mean_and_half_range(before + latest, track)
+    mean, overall = mean_and_half_range(both, track)
     scale = track.scale_of(mean)  # the two windows measured alike: against where the cycle sits
     (mean_a, half_a), (mean_b, half_b) = (mean_and_half_range(v, track, scale) for v in (latest, before))
     floors = [cycle_floor(_differences(track, iteration - k * width, width)) * track.scale / scale
@@ -142,6 +144,7 @@ def _cycle(track: QuantityTrack, iteration: int, found: Estimate, rule: SettleRu
 
 def _differences(track: QuantityTrack, end: int, width: int) -> np.ndarray:
     """The differences between samples in the ``width`` iterations up to ``end``."""
-    return np.asarray([d for it, d in zip(track.iterations, track.differences, strict=True)
-                       if end - width < it <= end and math.isfinite(d)] or [0.0])
+    lo = bisect.bisect_right(track.iterations, end - width)
+    hi = bisect.bisect_right(track.iterations, end)
+    return np.asarray([d for d in track.differences[lo:hi] if math.isfinite(d)] or [0.0])
 
