@@ -1,8 +1,8 @@
-"""Issue 56's fresh sets' candidates (experiments/settle/fresh-set, and fresh-set-2 after the first was
-spent): every builder writes a case with its user's settings; the candidates hold what their set needs
-(plain SIMPLE and SIMPLEC, the turbulence models mixed, meshes large enough for the long cases, function
-objects on most); no candidate is a case of an earlier set; two builds of a case are the same files;
-blockMesh and checkMesh pass and the function objects are well formed for v1912."""
+"""Issue 56's fresh sets' candidates (experiments/settle/fresh-set, then fresh-set-2 and fresh-set-3 as
+each earlier one was spent): every builder writes a case with its user's settings; the candidates hold
+what their set needs (plain SIMPLE and SIMPLEC, the turbulence models mixed, meshes large enough for the
+long cases, function objects on most); no candidate is a case of an earlier set; two builds of a case
+are the same files; blockMesh and checkMesh pass and the function objects are well formed for v1912."""
 
 from __future__ import annotations
 
@@ -45,6 +45,8 @@ SETS = {
                        ("squareNearWall", "porousHedge", "annulusWideRKE", "squareBankInline")),
     "fresh-set-2": Needs((*EARLIER, "settle/fresh-set/cases.py"), 8, 14, (4000, 13000), (11000, 5),
                          ("squareTandemSST", "cylinderTandemRKE", "windbreakSST")),
+    "fresh-set-3": Needs((*EARLIER, "settle/fresh-set/cases.py", "settle/fresh-set-2/cases.py"), 9, 14,
+                         (4000, 11000), (9000, 5), ("cylinderPairSST", "squaresCloseKE", "stepWideSST")),
 }
 
 
