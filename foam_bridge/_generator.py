@@ -7,7 +7,10 @@ each as a plain OpenFOAM case ``dest/<kind>-<k>/`` meshed by blockMesh (geometry
 foam_bridge._generator_mesh; fields and dictionaries: foam_bridge._generator_physics), and runs each
 once with its own settings. A case its own settings do not converge within its endTime (or that
 crashes or diverges) is rejected, as a user would not ship it, and further specs are drawn until N are
-accepted. ``dest/generated.json`` lists the accepted cases with their own run and the rejected specs
+accepted; with ``keep_unconverged`` a case that runs its whole endTime without meeting its criterion is
+kept instead (``converged`` false in the manifest): the cases whose criterion is never met are the ones
+``solve``'s stop on the answer and the env's ``settle`` option are for (issue 56). A crash or a divergence
+is still rejected. ``dest/generated.json`` lists the accepted cases with their own run and the rejected specs
 with the reason; it is rewritten (atomically) after each case, so an interrupted generation keeps what
 it made and a second call with the same seed goes on from there.
 
@@ -100,6 +103,10 @@ def _write_via(spec: CaseSpec, dest: Path, partial: Path, resolution: float, ope
     return dest
 
 
+#: Why a case whose own run reached its endTime without meeting its criterion was rejected.
+NOT_CONVERGED = "not converged within endTime"
+
+
 @dataclass(frozen=True)
 class OwnRun:
     """A case's run with its own settings: converged (residualControl met), iterations (the last one
@@ -149,7 +156,7 @@ def _failure(parser: LogParser, code: int) -> str:
         return f"diverged: {parser.diverged}"
     if parser.error or code != 0:
         return f"crashed (exit {code}): {parser.error or 'no error message'} at iteration {parser.iteration}"
-    return f"not converged within endTime ({parser.completed} iterations)"
+    return f"{NOT_CONVERGED} ({parser.completed} iterations)"
 
 
 @dataclass(frozen=True)
@@ -198,9 +205,10 @@ def _index(name: str) -> int:
 
 
 def make_case(spec: CaseSpec, dest: Path, resolution: float, openfoam: OpenFOAM,
-              own: bool) -> GeneratedCase | Rejected:
+              own: bool, keep_unconverged: bool = False) -> GeneratedCase | Rejected:
     """One case in ``dest``: written, meshed and (``own``) run; a failure is a Rejected and leaves no
-    directory. Runs in a worker process (everything here pickles)."""
+    directory (a run to its endTime without convergence is one unless ``keep_unconverged``). Runs in a
+    worker process (everything here pickles)."""
     scratch = dest / SCRATCH
     final = dest / spec.name
     try:
@@ -211,11 +219,12 @@ def make_case(spec: CaseSpec, dest: Path, resolution: float, openfoam: OpenFOAM,
     if not own:
         return GeneratedCase(spec.name, final, spec, resolution, cells, None, None, None, None, None)
     result = run_own(final, openfoam, scratch / f"{spec.name}.own")
-    if not result.converged:
+    ran_out = str(result.failure).startswith(NOT_CONVERGED)
+    if not result.converged and not (keep_unconverged and ran_out):
         shutil.rmtree(final, ignore_errors=True)
         return Rejected(spec, str(result.failure))
-    return GeneratedCase(spec.name, final, spec, resolution, cells, True, result.iterations, result.cpu_s,
-                         result.wall_s, result.exit_code)
+    return GeneratedCase(spec.name, final, spec, resolution, cells, result.converged, result.iterations,
+                         result.cpu_s, result.wall_s, result.exit_code)
 
 
 def read_generated(dest: Path) -> dict[str, Any]:
@@ -224,16 +233,18 @@ def read_generated(dest: Path) -> dict[str, Any]:
     return json.loads(path.read_text()) if path.is_file() else {}
 
 
-def _resume(dest: Path, seed: int, kinds: tuple[str, ...], resolution: float,
-            own: bool) -> tuple[list[GeneratedCase], list[Rejected]]:
+def _resume(dest: Path, seed: int, kinds: tuple[str, ...], resolution: float, own: bool,
+            keep_unconverged: bool) -> tuple[list[GeneratedCase], list[Rejected]]:
     """What an earlier call with the same settings made in ``dest`` (accepted cases whose directory is
     gone are made again); ValueError if it was made with other settings."""
     manifest = read_generated(dest)
     if not manifest:
         return [], []
     earlier = {"seed": manifest.get("seed"), "kinds": tuple(manifest.get("kinds", ())),
-               "resolution": manifest.get("resolution"), "run_own": manifest.get("run_own")}
-    now = {"seed": seed, "kinds": kinds, "resolution": resolution, "run_own": own}
+               "resolution": manifest.get("resolution"), "run_own": manifest.get("run_own"),
+               "keep_unconverged": manifest.get("keep_unconverged", False)}
+    now = {"seed": seed, "kinds": kinds, "resolution": resolution, "run_own": own,
+           "keep_unconverged": keep_unconverged}
     if earlier != now:
         changed = ", ".join(f"{key} {earlier[key]} (now {now[key]})" for key in now
                             if earlier[key] != now[key])
@@ -254,6 +265,7 @@ def _write_manifest(dest: Path, settings: dict[str, Any], cases: Sequence[Genera
 
 def generate_cases(dest: Path, n: int, seed: int, *, kinds: Sequence[str] = GEOMETRY_KINDS,
                    resolution: float = 1.0, workers: int = 1, run_own: bool = True,
+                   keep_unconverged: bool = False,
                    progress: Callable[[GeneratedCase | Rejected], None] | None = None,
                    openfoam: OpenFOAM | None = None) -> list[GeneratedCase]:
     """Generate ``n`` accepted cases in ``dest`` (see the module docstring); returns them in index order.
@@ -262,7 +274,8 @@ def generate_cases(dest: Path, n: int, seed: int, *, kinds: Sequence[str] = GEOM
     ``3 n`` have been drawn; cases already in dest's manifest (same seed, kinds, resolution) are kept and
     not made again. ``workers`` cases are made at once, each in its own process; a spec is only started
     while fewer than ``n`` are accepted or under way, so the accepted set is the one a serial run makes.
-    ``progress`` is called with each case made or rejected.
+    ``progress`` is called with each case made or rejected. ``keep_unconverged``: keep a case whose own
+    run reaches its endTime without meeting its criterion (see the module docstring).
     """
     kinds = check_kinds(kinds)
     if n < 1 or workers < 1 or not resolution > 0:
@@ -271,9 +284,10 @@ def generate_cases(dest: Path, n: int, seed: int, *, kinds: Sequence[str] = GEOM
     openfoam = openfoam or find_openfoam()
     dest = Path(dest).resolve()
     dest.mkdir(parents=True, exist_ok=True)
-    cases, rejected = _resume(dest, seed, kinds, resolution, run_own)
+    cases, rejected = _resume(dest, seed, kinds, resolution, run_own, keep_unconverged)
     shutil.rmtree(dest / SCRATCH, ignore_errors=True)  # an interrupted call's half-written cases
-    settings = {"seed": seed, "kinds": list(kinds), "resolution": resolution, "run_own": run_own}
+    settings = {"seed": seed, "kinds": list(kinds), "resolution": resolution, "run_own": run_own,
+                "keep_unconverged": keep_unconverged}
     known = {case.name for case in cases} | {item.spec.name for item in rejected}
     todo = (spec for spec in (draw_spec(seed, k, kinds) for k in range(MAX_DRAWS_PER_CASE * n))
             if spec.name not in known)
@@ -286,13 +300,14 @@ def generate_cases(dest: Path, n: int, seed: int, *, kinds: Sequence[str] = GEOM
 
     if workers == 1:
         while len(cases) < n and (spec := next(todo, None)) is not None:
-            record(make_case(spec, dest, resolution, openfoam, run_own))
+            record(make_case(spec, dest, resolution, openfoam, run_own, keep_unconverged))
     else:
         with ProcessPoolExecutor(workers, mp_context=get_context("spawn")) as pool:
             running: set[Future] = set()
             while True:
                 while len(cases) + len(running) < n and (spec := next(todo, None)) is not None:
-                    running.add(pool.submit(make_case, spec, dest, resolution, openfoam, run_own))
+                    running.add(pool.submit(make_case, spec, dest, resolution, openfoam, run_own,
+                                            keep_unconverged))
                 if not running:
                     break
                 finished, running = wait(running, return_when=FIRST_COMPLETED)

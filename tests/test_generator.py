@@ -176,6 +176,24 @@ def test_a_case_that_does_not_converge_is_rejected_and_a_second_call_goes_on(tmp
         generate_cases(dest, 3, 8, kinds=("contraction", "rib"), resolution=0.4)
 
 
+def test_keep_unconverged_keeps_a_case_that_runs_its_endtime_and_says_so(tmp_path, monkeypatch):
+    """Issue 56: the cases whose criterion is never met are the ones the stop on the answer is for."""
+    drawn = generator.draw_spec
+
+    def draw(seed, index, kinds, *rest):  # 5 iterations: its own run cannot converge
+        return dataclasses.replace(drawn(seed, index, kinds, *rest), **{**EASY, "end_time": 5})
+
+    monkeypatch.setattr(generator, "draw_spec", draw)
+    dest = tmp_path / "gen"
+    (case,) = generate_cases(dest, 1, 7, kinds=("contraction",), resolution=0.4, keep_unconverged=True)
+    manifest = read_generated(dest)
+    assert case.name == "contraction-0" and case.converged is False and case.iterations == 5
+    assert manifest["keep_unconverged"] and not manifest["rejected"]
+    assert manifest["cases"][0]["converged"] is False and (dest / "contraction-0" / "system").is_dir()
+    with pytest.raises(ValueError, match="keep_unconverged True \\(now False\\)"):
+        generate_cases(dest, 1, 7, kinds=("contraction",), resolution=0.4)
+
+
 def _exit_code(argv: list[str]) -> int:
     try:
         return main(argv)

@@ -50,6 +50,10 @@ def register(subparsers: Any) -> None:
                         help="cases made at once, each simpleFoam on one core (default 1)")
     parser.add_argument("--no-own", dest="run_own", action="store_false",
                         help="do not run each case with its own settings (no rejection; faster)")
+    parser.add_argument("--keep-unconverged", action="store_true",
+                        help="keep a case whose own run reaches its endTime without meeting its criterion "
+                             "(solve's --settle and the env's settle option are for such cases); a crash or "
+                             "a divergence is still rejected")
     parser.set_defaults(func=run_generate_cases)
 
 
@@ -59,7 +63,8 @@ def _line(case: GeneratedCase) -> str:
     head = f"{case.name}: {spec.algorithm}, {spec.model}, Re {reynolds}, {case.cells:,} cells"
     if case.iterations is None:
         return head
-    return f"{head}, own {case.iterations} its {case.cpu_s:.1f} s"
+    unmet = "" if case.converged else " (criterion never met)"
+    return f"{head}, own {case.iterations} its {case.cpu_s:.1f} s{unmet}"
 
 
 def run_generate_cases(args: argparse.Namespace) -> int:
@@ -80,7 +85,8 @@ def run_generate_cases(args: argparse.Namespace) -> int:
     try:
         find_openfoam()
         cases = generate_cases(args.dest, args.n, args.seed, kinds=args.kinds, resolution=args.resolution,
-                               workers=args.workers, run_own=args.run_own, progress=progress)
+                               workers=args.workers, run_own=args.run_own,
+                               keep_unconverged=args.keep_unconverged, progress=progress)
     except (ValueError, CaseError, OpenFOAMNotFoundError) as err:
         fail(" ".join(str(err).split()))
     rejected = read_generated(args.dest).get("rejected", [])
