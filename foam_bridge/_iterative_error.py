@@ -168,12 +168,16 @@ class QuantityTrack:
     def window(self, width: int, end: int | None = None) -> tuple[list[int], np.ndarray]:
         """The iterations and the values (rows of one array, a view) of the snapshots in the ``width``
         iterations up to ``end`` (default the latest sample)."""
-        last = self.iterations[-1] if end is None else end
-        lo = bisect.bisect_right(self._snapshot_its, last - width)
-        hi = bisect.bisect_right(self._snapshot_its, last)
         if self._rows is None:
             return [], np.empty((0,))
-        return self._snapshot_its[lo:hi], self._rows[lo:hi]
+        span = _span(self._snapshot_its, width, self.iterations[-1] if end is None else end)
+        return self._snapshot_its[span], self._rows[span]
+
+    def differences_in(self, width: int, end: int) -> np.ndarray:
+        """The finite differences between samples in the ``width`` iterations up to ``end`` ([0.0] if
+        there is none)."""
+        found = self.differences[_span(self.iterations, width, end)]
+        return np.asarray([d for d in found if math.isfinite(d)] or [0.0])
 
     @property
     def latest(self) -> np.ndarray | None:
@@ -183,6 +187,11 @@ class QuantityTrack:
         """What an error is relative to where the answer settles at ``answer``: its norm, or the floor
         (a value whose mean is near zero, a side force, is measured against its row, not itself)."""
         return max(float(norm(answer)), self.floor)
+
+
+def _span(iterations: list[int], width: int, end: int) -> slice:
+    """The entries of sorted ``iterations`` in the ``width`` iterations up to ``end``: (end - width, end]."""
+    return slice(bisect.bisect_right(iterations, end - width), bisect.bisect_right(iterations, end))
 
 
 def _relative(norm: float, scale: float) -> float:

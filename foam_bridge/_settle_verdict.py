@@ -21,8 +21,6 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
-import numpy as np
-
 from foam_bridge._iterative_error import (
     OSCILLATING,
     RANGE_MARGIN,
@@ -131,7 +129,7 @@ def _cycle(track: QuantityTrack, iteration: int, found: Estimate, rule: SettleRu
     mean, overall = mean_and_half_range(both, track)
     scale = track.scale_of(mean)  # the two windows measured alike: against where the cycle sits
     (mean_a, half_a), (mean_b, half_b) = (mean_and_half_range(v, track, scale) for v in (latest, before))
-    floors = [cycle_floor(_differences(track, iteration - k * width, width)) * track.scale / scale
+    floors = [cycle_floor(track.differences_in(width, iteration - k * width)) * track.scale / scale
               for k in (0, 1)]
     half_a, half_b = max(half_a, floors[0]), max(half_b, floors[1])
     half = max(half_a, half_b)
@@ -140,11 +138,4 @@ def _cycle(track: QuantityTrack, iteration: int, found: Estimate, rule: SettleRu
         return None
     overall = max(RANGE_MARGIN * overall, found.half_range)
     return Estimate(found.model, overall, found.period, overall, 2 * width)
-
-
-def _differences(track: QuantityTrack, end: int, width: int) -> np.ndarray:
-    """The differences between samples in the ``width`` iterations up to ``end``."""
-    lo = bisect.bisect_right(track.iterations, end - width)
-    hi = bisect.bisect_right(track.iterations, end)
-    return np.asarray([d for d in track.differences[lo:hi] if math.isfinite(d)] or [0.0])
 
