@@ -43,7 +43,7 @@ from foam_bridge._openfoam import find_openfoam
 from foam_bridge._settle_verdict import SettleRule, Verdict, _Since, judge, judge_due
 from foam_bridge._template import run_application
 
-__all__ = ["MONITOR_DIR", "SAMPLE_INTERVAL", "AnswerMonitor", "install_monitor", "request_stop",
+__all__ = ["MONITOR_DIR", "SAMPLE_INTERVAL", "AnswerMonitor", "install_monitor", "new_track", "request_stop",
            "restore_case"]
 
 MONITOR_DIR = "jaxsimrlSettle"
@@ -64,6 +64,14 @@ RARE_SAMPLES = 10
 #: Checks kept in a report's history (for the plot).
 HISTORY_POINTS = 400
 _WRITE_FORMAT = re.compile(r"^\s*writeFormat\s+(\w+)\s*;", re.MULTILINE)
+
+
+def new_track(name: str, is_field: bool) -> QuantityTrack:
+    """The track the monitor keeps of a quantity: a field (read in binary, at full precision) or a
+    function object's value (written with 6 significant digits)."""
+    if is_field:
+        return QuantityTrack(name, max_snapshots=FIELD_SNAPSHOTS)
+    return QuantityTrack(name, VALUE_SNAPSHOTS, resolution=WRITTEN_RESOLUTION)
 
 
 def install_monitor(case: Path, fields: Sequence[str], interval: int = SAMPLE_INTERVAL,
@@ -230,10 +238,7 @@ class AnswerMonitor:
 
     def _track(self, name: str) -> QuantityTrack:
         if name not in self.tracks:
-            if name in self.fields:  # binary, full precision
-                self.tracks[name] = QuantityTrack(name, max_snapshots=FIELD_SNAPSHOTS)
-            else:  # written with 6 significant digits
-                self.tracks[name] = QuantityTrack(name, VALUE_SNAPSHOTS, resolution=WRITTEN_RESOLUTION)
+            self.tracks[name] = new_track(name, is_field=name in self.fields)
         return self.tracks[name]
 
     def _read_values(self) -> None:

@@ -21,15 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from foam_bridge import QuantityTrack, SettleRule, TableReader, quantity_name, row_scale, time_series
-from foam_bridge._answer_monitor import (
-    FIELD_SNAPSHOTS,
-    SAMPLE_FUNCTION,
-    SAMPLE_INTERVAL,
-    VALUE_SNAPSHOTS,
-    VALUE_STRIDE,
-)
-from foam_bridge._iterative_error import WRITTEN_RESOLUTION
+from foam_bridge import SettleRule, TableReader, quantity_name, row_scale, time_series
+from foam_bridge._answer_monitor import SAMPLE_FUNCTION, SAMPLE_INTERVAL, VALUE_STRIDE, new_track
 from foam_bridge._settle_verdict import judge, judge_due
 
 
@@ -58,7 +51,7 @@ def replay(directory: Path, tolerance: float, verbose: bool = False, fields_only
     stacks = {name: np.load(samples / f"{name}.npy", mmap_mode="r") for name in record["fields"]}
     truth = {name: entry["errors"] for name, entry in record["fields"].items()}
     halves = {name: entry["half_range_last_third"] for name, entry in record["fields"].items()}
-    tracks = {name: QuantityTrack(name, max_snapshots=FIELD_SNAPSHOTS) for name in record["fields"]}
+    tracks = {name: new_track(name, is_field=True) for name in record["fields"]}
     values = [] if fields_only else _value_rows(directory / "case", record["start"], budget)
     if not fields_only:
         truth.update({name: entry["errors"] for name, entry in record["values"].items()})
@@ -75,7 +68,7 @@ def replay(directory: Path, tolerance: float, verbose: bool = False, fields_only
         while cursor < len(values) and values[cursor][0] <= n:
             at, name, value, floor = values[cursor]
             if name not in tracks:
-                tracks[name] = QuantityTrack(name, VALUE_SNAPSHOTS, resolution=WRITTEN_RESOLUTION)
+                tracks[name] = new_track(name, is_field=False)
             tracks[name].add(at, value, floor)
             cursor += 1
         if not judge_due(n, last):
@@ -91,15 +84,15 @@ def replay(directory: Path, tolerance: float, verbose: bool = False, fields_only
         if verbose and n % 100 == 0:
             print(n, {k: f"{v.model[:4]} {v.error:.1e}/{truth[k][index]:.1e}" for k, v in
                       verdict.estimates.items() if k in truth})
-        if verdict.outcome is not None and stop is None:
-            stop, outcome = n, verdict.outcome
-            stop_truth = {name: truth[name][index] for name in tracks if name in truth}
-            stop_estimate = {name: e.error for name, e in verdict.estimates.items() if name in truth}
-            stop_models = {name: e.model for name, e in verdict.estimates.items()}
-    if stop is None:  # to the budget: the last verdict is the report
-        stop_truth = {name: truth[name][index] for name in tracks if name in truth}
-        stop_estimate = {name: e.error for name, e in verdict.estimates.items() if name in truth}
-        stop_models = {name: e.model for name, e in verdict.estimates.items()}
+        if stop is None:  # the report: the verdict that stopped the run, else the last (the budget's)
+            reported, reported_at = verdict, index
+            if verdict.outcome is not None:
+                stop, outcome = n, verdict.outcome
+    if stop is None:
+        reported_at = index  # the truth at the budget's sample, as before
+    stop_truth = {name: truth[name][reported_at] for name in tracks if name in truth}
+    stop_estimate = {name: e.error for name, e in reported.estimates.items() if name in truth}
+    stop_models = {name: e.model for name, e in reported.estimates.items()}
     worst = np.max(np.asarray([truth[name][:len(its[keep])] for name in tracks if name in truth]), axis=0)
     within = np.flatnonzero(worst > tolerance)
     first = int(its[within[-1] + 1]) if len(within) and within[-1] + 1 < len(worst) else (
