@@ -183,7 +183,7 @@ def table(rows_path: Path, references: Path, arrays: Path, out: Path) -> None:
                "pairs": len(pairs),
                "share_held": sum(e >= t for e, t in pairs) / len(pairs) if pairs else None,
                "median_estimate_over_true": statistics.median(ratios) if ratios else None,
-               **_resolved(pairs),
+               **resolved_sharpness(pairs),
                "settled": [j["case"] for j in settled],
                "settled_within_1_5x_first": [j["case"] for j in settled
                                              if (j["stop_over_first"] or math.inf) <= 1.5],
@@ -227,14 +227,14 @@ def converging_table(rows_path: Path, references: Path, arrays: Path, out: Path)
                "pairs": len(pairs),
                "share_held": sum(e >= t for e, t in pairs) / len(pairs) if pairs else None,
                "median_estimate_over_true": statistics.median(ratios) if ratios else None,
-               **_resolved(pairs)}
+               **resolved_sharpness(pairs)}
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text("\n".join(lines) + "\n\n```json\n" + json.dumps(summary, indent=1) + "\n```\n")
     print("\n".join(lines))
     print(json.dumps(summary, indent=1))
 
 
-def _resolved(pairs: list[tuple[float, float]]) -> dict[str, float | int | None]:
+def resolved_sharpness(pairs: list[tuple[float, float]]) -> dict[str, float | int | None]:
     """The sharpness over the pairs whose true error is resolved (at least RESOLVED)."""
     ratios = [e / t for e, t in pairs if t >= RESOLVED]
     return {"pairs_resolved": len(ratios),

@@ -23,12 +23,12 @@ import statistics
 from pathlib import Path
 
 import replay
+from evaluate import resolved_sharpness
 
 import foam_bridge._settle_verdict as verdict
 from foam_bridge import DEFAULT_TOLERANCE
 
 VARIANTS = (0.25, 0.5, 0.75, 1.0)
-RESOLVED = 1e-5
 
 
 def measure(directories: list[Path], stable: float) -> dict:
@@ -40,13 +40,13 @@ def measure(directories: list[Path], stable: float) -> dict:
         verdict.STABLE = shipped
     found = replay.summary(results, DEFAULT_TOLERANCE)
     pairs = [(r["stop_estimate"].get(name), true) for r in results for name, true in r["stop_truth"].items()]
-    resolved = [e / t for e, t in pairs if e is not None and t is not None and t >= RESOLVED]
+    sharp = resolved_sharpness([(e, t) for e, t in pairs if e is not None and t is not None])
     spent = [(r["stop"] or r["budget"]) / r["budget"] for r in results]
     return {"stable": stable, "cases": len(results),
             "median_iterations_over_budget": statistics.median(spent),
             "stopped_by_0.40": sum(x <= 0.40 for x in spent), "pairs": found["pairs"],
             "share_held": found["share_held"], "median_estimate_over_true": found["median_ratio"],
-            "median_estimate_over_true_resolved": statistics.median(resolved) if resolved else None,
+            "median_estimate_over_true_resolved": sharp["median_estimate_over_true_resolved"],
             "half_range_short": sorted({item.split()[0] for item in found["oscillating_half_range_short"]}),
             "stops": {r["case"]: [r["stop"], r["outcome"]] for r in results}}
 
