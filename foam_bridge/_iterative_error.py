@@ -34,9 +34,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["CONVERGED", "CONVERGING", "MODELS", "OSCILLATING", "RANGE_MARGIN", "TOO_EARLY", "WANDERING",
-           "WRITTEN_RESOLUTION", "Estimate", "QuantityTrack", "cycle_floor", "estimate", "farthest",
-           "mean_and_half_range", "norm", "steady_window"]
+__all__ = ["CONVERGED", "CONVERGING", "MIN_SAMPLES", "MODELS", "OSCILLATING", "RANGE_MARGIN", "TOO_EARLY",
+           "WANDERING", "WRITTEN_RESOLUTION", "Estimate", "QuantityTrack", "cycle_floor", "estimate",
+           "farthest", "mean_and_half_range", "norm", "steady_window"]
 
 CONVERGING = "converging"
 OSCILLATING = "oscillating"

@@ -42,11 +42,16 @@ def _value_rows(case: Path, start: int, budget: int) -> list[tuple[int, str, np.
     return sorted(rows, key=lambda row: row[0])
 
 
-def replay(directory: Path, tolerance: float, verbose: bool = False, fields_only: bool = False) -> dict:
+def replay(directory: Path, tolerance: float, verbose: bool = False, fields_only: bool = False,
+           at_criterion: bool = False) -> dict:
+    """``at_criterion``: a converging case as solve runs it, to its own criterion (its last sample before
+    the iteration the criterion is met, judged there as the monitor judges a run that ended)."""
     record = json.loads((directory / "reference.json").read_text())
     samples = directory / "samples"
     its = np.load(samples / "iterations.npy")
     budget = record["budget"]
+    if at_criterion and record["criterion_met_at"] is not None:
+        budget = min(budget, record["criterion_met_at"])
     keep = (its <= budget) & (its % SAMPLE_INTERVAL == 0)  # what a settle run samples
     stacks = {name: np.load(samples / f"{name}.npy", mmap_mode="r") for name in record["fields"]}
     truth = {name: entry["errors"] for name, entry in record["fields"].items()}
@@ -61,6 +66,7 @@ def replay(directory: Path, tolerance: float, verbose: bool = False, fields_only
     checks = 0
     last = None
     cursor = 0
+    final = int(np.flatnonzero(keep)[-1])
     for index in np.flatnonzero(keep):
         n = int(its[index])
         for name in record["fields"]:
@@ -71,7 +77,7 @@ def replay(directory: Path, tolerance: float, verbose: bool = False, fields_only
                 tracks[name] = new_track(name, is_field=False)
             tracks[name].add(at, value, floor)
             cursor += 1
-        if not judge_due(n, last):
+        if not judge_due(n, last) and not (at_criterion and index == final):
             continue
         last = n
         verdict, since = judge(tracks, n, SettleRule(tolerance), since)
@@ -144,10 +150,12 @@ def main() -> None:
     parser.add_argument("--tolerance", type=float, default=1e-3)
     parser.add_argument("--verbose", action="store_true")
     parser.add_argument("--fields-only", action="store_true", help="the fields alone, no function objects")
+    parser.add_argument("--at-criterion", action="store_true",
+                        help="converging cases: to their own criterion, as solve runs them")
     args = parser.parse_args()
     results = []
     for directory in args.runs:
-        results.append(replay(directory, args.tolerance, args.verbose, args.fields_only))
+        results.append(replay(directory, args.tolerance, args.verbose, args.fields_only, args.at_criterion))
         print(json.dumps({k: results[-1][k] for k in ("case", "kind", "stop", "outcome", "first_within",
                                                       "median_ratio", "below_share")}))
     print(json.dumps(summary(results, args.tolerance), default=lambda v: float(f"{v:.3g}")))
