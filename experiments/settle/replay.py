@@ -96,10 +96,13 @@ def replay(directory: Path, tolerance: float, verbose: bool = False, fields_only
                 stop, outcome = n, verdict.outcome
     if stop is None:
         reported_at = index  # the truth at the budget's sample, as before
-    stop_truth = {name: truth[name][reported_at] for name in tracks if name in truth}
+    stop_truth = {name: truth[name][reported_at] for name in tracks
+                  if name in truth and reported_at < len(truth[name])}
     stop_estimate = {name: e.error for name, e in reported.estimates.items() if name in truth}
     stop_models = {name: e.model for name, e in reported.estimates.items()}
-    worst = np.max(np.asarray([truth[name][:len(its[keep])] for name in tracks if name in truth]), axis=0)
+    curves = [truth[name][:len(its[keep])] for name in tracks if name in truth]
+    length = min(len(curve) for curve in curves)  # a value's curve may end sooner (fewer rows)
+    worst = np.max(np.asarray([curve[:length] for curve in curves], dtype=np.float64), axis=0)
     within = np.flatnonzero(worst > tolerance)
     first = int(its[within[-1] + 1]) if len(within) and within[-1] + 1 < len(worst) else (
         int(its[0]) if not len(within) else None)
