@@ -29,8 +29,8 @@ from foam_bridge._iterative_error import (
     QuantityTrack,
     cycle_floor,
     estimate,
-    mean_and_half_range,
     norm,
+    two_windows,
 )
 
 __all__ = ["DEFAULT_TOLERANCE", "MIN_ITERATIONS", "SETTLED", "SettleRule", "Verdict", "judge", "judge_due"]
@@ -123,12 +123,11 @@ def _cycle(track: QuantityTrack, iteration: int, found: Estimate, rule: SettleRu
         return None
     its, both = track.window(2 * width, iteration)  # the window before the latest, then the latest
     split = bisect.bisect_right(its, iteration - width)
-    before, latest = both[:split], both[split:]
-    if len(latest) < 3 or len(before) < 3:
+    if len(its) - split < 3 or split < 3:
         return None
-    mean, overall = mean_and_half_range(both, track)
-    scale = track.scale_of(mean)  # the two windows measured alike: against where the cycle sits
-    (mean_a, half_a), (mean_b, half_b) = (mean_and_half_range(v, track, scale) for v in (latest, before))
+    # the two windows measured alike: against where the cycle sits
+    mean, overall, (mean_a, half_a), (mean_b, half_b) = two_windows(both, split, track)
+    scale = track.scale_of(mean)
     floors = [cycle_floor(track.differences_in(width, iteration - k * width)) * track.scale / scale
               for k in (0, 1)]
     half_a, half_b = max(half_a, floors[0]), max(half_b, floors[1])
