@@ -178,3 +178,56 @@ def test_the_monitor_follows_function_object_values_at_their_written_resolution(
     monitor = AnswerMonitor(tmp_path, ["U"])
     assert monitor._track("probes/p 0").resolution == WRITTEN_RESOLUTION
     assert monitor._track("U").resolution == 0.0  # a field is read in binary, at full precision
+
+
+def _monitored_case(root, times, full, precision=None):
+    """A case whose time directories hold the monitor's samples of p (converging, 200 cells) at ``times``
+    and a full write (p and phi) at ``full``; its controlDict writes ascii (with ``precision`` digits)."""
+    (root / "system").mkdir(parents=True)
+    digits = "" if precision is None else f"writePrecision {precision};\n"
+    (root / "system" / "controlDict").write_text(f"writeFormat ascii;\n{digits}")
+    cells = np.linspace(1.0, 2.0, 200)
+    for n in [*times, full]:
+        directory = root / str(n)
+        directory.mkdir()
+        body = "\n".join(repr(float(v)) for v in cells + 0.97 ** n * np.sin(7 * cells))
+        (directory / "p").write_text("FoamFile\n{\n    format ascii;\n    class volScalarField;\n}\n"
+                                     f"internalField nonuniform List<scalar> 200\n(\n{body}\n);\n")
+        if n == full:
+            (directory / "phi").write_text("FoamFile\n{\n}\n")
+    return root
+
+
+def test_the_runs_own_last_write_soon_after_a_sample_is_not_a_sample(tmp_path) -> None:
+    from foam_bridge._answer_monitor import AnswerMonitor
+
+    case = _monitored_case(tmp_path / "case", range(25, 301, 25), full=309)
+    monitor = AnswerMonitor(case, ["p"])
+    monitor.poll(309, ended=True)
+    assert monitor.tracks["p"].iterations[-1] == 300  # its 9-iteration step would read as a slowdown
+    assert monitor.verdict is not None and monitor.verdict.iteration == 300
+    assert (case / "309" / "p").is_file()  # the run's own write stays
+
+    short = _monitored_case(tmp_path / "short", range(25, 176, 25), full=181)
+    monitor = AnswerMonitor(short, ["p"])
+    monitor.poll(181, ended=True)
+    assert monitor.tracks["p"].iterations[-1] == 181  # too few samples without it: it counts
+
+
+def test_a_fields_reported_error_is_at_least_the_rounding_of_its_written_digits(tmp_path) -> None:
+    from foam_bridge._answer_monitor import AnswerMonitor, written_resolution
+
+    case = _monitored_case(tmp_path / "case", range(25, 401, 25), full=409, precision=8)
+    assert written_resolution(case) == pytest.approx(5e-8)
+    (case / "system" / "controlDict").write_text("writeFormat binary;\n")
+    assert written_resolution(case) == 0.0
+    (case / "system" / "controlDict").write_text("writeFormat ascii;\n")
+    assert written_resolution(case) == pytest.approx(5e-6)  # OpenFOAM's default writePrecision, 6
+    monitor = AnswerMonitor(case, ["p"])
+    for n in range(25, 401, 25):  # a field that no longer changes: converged, its computed error 0
+        (case / str(n) / "p").write_text((case / "25" / "p").read_text())
+    monitor.poll(409, ended=True)
+    report = monitor.report()
+    assert report["quantities"]["p"]["model"] == CONVERGED
+    assert report["quantities"]["p"]["computed_error"] == 0.0
+    assert report["iterative_error"]["p"] == pytest.approx(5e-6)

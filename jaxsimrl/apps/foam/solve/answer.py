@@ -10,7 +10,7 @@ solve.json's ``result`` keys and the summary's words:
   converged or settled, 1 otherwise (``succeeded``).
 - ``result.iterative_error``: {quantity: estimated relative error at the stop}: fields by their OpenFOAM
   names ("U", "p"), function-object values as solve's agreement names them (``<object>/<file> [row]
-  column``).
+  column``); a field's at least the rounding of its written digits (foam_bridge's monitor report).
 - ``result.residuals_not_met``: each criterion field whose initial residual never met its threshold, and
   the level where it held (the median over the run's last tenth).
 """
