@@ -11,9 +11,11 @@ solver's own figure for the same iterations, which the binary writes every 25 it
 monitor's own CPU seconds (its process's time in its polls, beside the solver). Reported per case: the medians
 of the monitor's CPU seconds, of (monitored solver CPU / plain solver CPU - 1) and of (monitor CPU / plain
 solver CPU), and the sum of the last two: the cost on top of the plain run. Cases: pitzDaily (the tutorial,
-12,225 cells, no function object read) and heldout-v2's squareTubeRow with a user's forces, a probe and an
-outlet average (function objects every iteration). Writes OUT/settle_cost.jsonl (every run) and
-OUT/settle_cost.md (machine, date, medians);
+12,225 cells, no function object read), heldout-v2's squareTubeRow with a user's forces, a probe and an
+outlet average (function objects every iteration) and the simpleCar tutorial (12,940 cells; its binned
+force coefficients are 496 values every iteration; its runTimeControl, an average of Cd, ends it at iteration
+208 whatever the criterion). Writes OUT/settle_cost.jsonl (every run) and OUT/settle_cost.md (machine,
+date, medians);
 ``--table-only`` writes the table again from OUT/settle_cost.jsonl.
 """
 
@@ -27,6 +29,7 @@ import os
 import platform
 import shutil
 import statistics
+import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -63,6 +66,13 @@ def cases(root: Path) -> dict[str, Path]:
         control = row / "system" / "controlDict"
         control.write_text(control.read_text() + FUNCTION_OBJECTS)
     built["squareTubeRowFO"] = row
+    car = root / "simpleCar"
+    if not car.exists():
+        sys.path.insert(0, str(ROOT / "experiments" / "controller" / "heldout-v1"))
+        from prepare import simpleCar  # the tutorial's Allrun (heldout-v1's builder)
+
+        simpleCar(car)
+    built["simpleCar"] = car
     return built
 
 
@@ -81,22 +91,25 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--out", type=Path, required=True)
     parser.add_argument("--pairs", type=int, default=5)
+    parser.add_argument("--only", nargs="+", help="these cases alone")
     parser.add_argument("--table-only", action="store_true")
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     if args.table_only:
         rows = [json.loads(line) for line in (args.out / "settle_cost.jsonl").read_text().splitlines()]
     else:
-        rows = measure(args.pairs)
+        rows = measure(args.pairs, args.only)
         with open(args.out / "settle_cost.jsonl", "w") as file:
             file.writelines(json.dumps(row) + "\n" for row in rows)
     write_table(args.out, rows, args.pairs)
 
 
-def measure(pairs: int) -> list[dict]:
+def measure(pairs: int, only: list[str] | None = None) -> list[dict]:
     work = Path(os.environ.get("TMPDIR", "/tmp")) / "bench_settle_cost"
     rows = []
     for name, case in cases(work).items():
+        if only and name not in only:
+            continue
         for pair in range(pairs):
             order = (False, True) if pair % 2 == 0 else (True, False)
             for monitored in order:
