@@ -38,7 +38,7 @@ import numpy as np
 from foam_bridge._export import POST_PROCESSING
 from foam_bridge._fields import read_internal_field, time_directories, time_names
 from foam_bridge._function_objects import TableReader, quantity_name, row_scale, time_series
-from foam_bridge._iterative_error import MIN_SAMPLES, WRITTEN_RESOLUTION, QuantityTrack
+from foam_bridge._iterative_error import MIN_HISTORY, WRITTEN_RESOLUTION, QuantityTrack
 from foam_bridge._openfoam import find_openfoam
 from foam_bridge._settle_verdict import SettleRule, Verdict, _Since, judge, judge_due
 from foam_bridge._template import run_application
@@ -228,11 +228,8 @@ class AnswerMonitor:
         return self.stop_due if self.stop_due is not None and due_before is None else None
 
     def _too_soon(self, time: int) -> bool:
-        """Whether a write at ``time`` comes sooner after the last sample than the sample interval, with
-        enough samples before it for an estimate (else it is one more sample, for an estimate at all)."""
-        samples = max((len(self.tracks[name].iterations) for name in self.fields if name in self.tracks),
-                      default=0)
-        return samples > MIN_SAMPLES and self._sampled_to < time < self._sampled_to + self.interval
+        """Whether a write at ``time`` comes sooner after the last sample than the sample interval."""
+        return 0 < self._sampled_to < time < self._sampled_to + self.interval
 
     def _ready_samples(self, iteration: int, ended: bool) -> list[tuple[int, list[Path]]]:
         """The time directories after the last sample read whose iteration the log shows complete. Not
@@ -346,7 +343,7 @@ class AnswerMonitor:
         if self.errors and (not history or history[-1] is not self.errors[-1]):
             history.append(self.errors[-1])
         return {"tolerance": self.rule.tolerance, "sample_interval": self.interval,
-                "monitor_cpu_s": self.cpu_s,
+                "min_history": MIN_HISTORY, "monitor_cpu_s": self.cpu_s,
                 "outcome": None if self.stop_due is None else self.stop_due.outcome,
                 "decided_at": None if self.stop_due is None else self.stop_due.iteration,
                 "at_iteration": None if verdict is None else verdict.iteration,

@@ -9,6 +9,8 @@ Every reference run under the given directories whose case never meets its own c
 stop's steadiness test as shipped (the latest window's mean and half-range within STABLE = 0.25 of the
 half-range of the window before) and looser ones; at STABLE = 1 the half-range test is void (|a - b| <=
 max(a, b) always): a run stops once its mean stays within its swing, even while the swing still shrinks.
+Then, at the shipped STABLE, shorter windows (each a quarter, a fifth, a sixth of the run instead of a
+third): a cycle that sets in at iteration s can stop a run no sooner than about 3s with windows of a third.
 Per variant: the median iterations over the budget, how many cases stop by 0.40x, the share of (case,
 quantity) pairs whose estimate is at or above the truth, the median estimate / true error (all pairs, and
 those whose truth is resolved, >= 1e-5), and the cases whose reported half-range is short of the
@@ -28,21 +30,23 @@ from evaluate import resolved_sharpness
 import foam_bridge._settle_verdict as verdict
 from foam_bridge import DEFAULT_TOLERANCE
 
-VARIANTS = (0.25, 0.5, 0.75, 1.0)
+#: (STABLE, CYCLE_FRACTION, MIN_CYCLE_WINDOW): the shipped test, looser ones, then shorter windows.
+VARIANTS = ((0.25, 1 / 3, 300), (0.5, 1 / 3, 300), (0.75, 1 / 3, 300), (1.0, 1 / 3, 300),
+            (0.25, 1 / 4, 300), (0.25, 1 / 5, 250), (0.25, 1 / 6, 200))
 
 
-def measure(directories: list[Path], stable: float) -> dict:
-    shipped = verdict.STABLE
-    verdict.STABLE = stable
+def measure(directories: list[Path], stable: float, fraction: float, least: int) -> dict:
+    shipped = verdict.STABLE, verdict.CYCLE_FRACTION, verdict.MIN_CYCLE_WINDOW
+    verdict.STABLE, verdict.CYCLE_FRACTION, verdict.MIN_CYCLE_WINDOW = stable, fraction, least
     try:
         results = [replay.replay(directory, DEFAULT_TOLERANCE) for directory in directories]
     finally:
-        verdict.STABLE = shipped
+        verdict.STABLE, verdict.CYCLE_FRACTION, verdict.MIN_CYCLE_WINDOW = shipped
     found = replay.summary(results, DEFAULT_TOLERANCE)
     pairs = [(r["stop_estimate"].get(name), true) for r in results for name, true in r["stop_truth"].items()]
     sharp = resolved_sharpness([(e, t) for e, t in pairs if e is not None and t is not None])
     spent = [(r["stop"] or r["budget"]) / r["budget"] for r in results]
-    return {"stable": stable, "cases": len(results),
+    return {"stable": stable, "window_fraction": fraction, "min_window": least, "cases": len(results),
             "median_iterations_over_budget": statistics.median(spent),
             "stopped_by_0.40": sum(x <= 0.40 for x in spent), "pairs": found["pairs"],
             "share_held": found["share_held"], "median_estimate_over_true": found["median_ratio"],
@@ -60,10 +64,11 @@ def main() -> None:
                    if (d / "reference.json").is_file()
                    and json.loads((d / "reference.json").read_text())["criterion_met_at"] is None]
     rows = []
-    for stable in VARIANTS:
-        rows.append(measure(directories, stable))
+    for stable, fraction, least in VARIANTS:
+        rows.append(measure(directories, stable, fraction, least))
         row = rows[-1]
-        print(f"STABLE {stable}: median {row['median_iterations_over_budget']:.2f} x budget, "
+        print(f"STABLE {stable}, windows 1/{round(1 / fraction)} (>= {least}): "
+              f"median {row['median_iterations_over_budget']:.2f} x budget, "
               f"{row['stopped_by_0.40']}/{row['cases']} by 0.40x, held {row['share_held']:.3f}, "
               f"ratio {row['median_estimate_over_true']:.2f} "
               f"({row['median_estimate_over_true_resolved']:.2f} resolved), "

@@ -77,7 +77,8 @@ def answer_lines(data: Mapping[str, Any]) -> list[str]:
         models = _models(answer.get("quantities") or {})
         lines.append(f"  iterative error (estimated, relative): {named}{more}; tolerance {tol:g}; {models}")
     else:
-        lines.append(f"  iterative error: not estimated (too few samples); tolerance {tol:g}")
+        lines.append(f"  iterative error: not estimated (the run's first {answer.get('min_history', 300)} "
+                     f"iterations are its start-up, too early to extrapolate); tolerance {tol:g}")
     lines += [f"  note: {note}" for note in answer.get("notes", [])]
     unmet = result.get("residuals_not_met") or {}
     if unmet:
