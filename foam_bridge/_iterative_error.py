@@ -158,8 +158,8 @@ class QuantityTrack:
             self._keep(int(iteration), value)
 
     def _scratch(self, value: np.ndarray) -> np.ndarray:
-        """A buffer of ``value``'s shape, kept: a new one per sample costs a page fault per 4 kB written
-        (a field of 12,000 cells, sampled 100 times, spent a third of its sampling time on them)."""
+        """A buffer of ``value``'s shape, kept: a new one per sample costs fresh pages (with the in-place
+        thinning of _keep, add took half the time on pitzDaily-sized fields, 12,225 cells)."""
         if self._buffer is None or self._buffer.shape != value.shape:
             self._buffer = np.empty_like(value)
         return self._buffer

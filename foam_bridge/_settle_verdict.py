@@ -11,7 +11,8 @@ A run may stop on its answer (the case's own criterion and budget still stop it 
   half-range over the latest window agree with the window before (within STABLE of the half-range): more
   iterations only repeat the cycle. Its error is then half its range over both windows.
 
-Nothing stops before MIN_ITERATIONS: a flow still starting up may not have reached a quantity yet.
+Nothing stops before MIN_ITERATIONS: a flow still starting up may not have reached a quantity yet (and
+nothing is estimated before foam_bridge._iterative_error.MIN_HISTORY, so no stop comes before it either).
 """
 
 from __future__ import annotations
