@@ -228,9 +228,11 @@ def estimate(track: QuantityTrack) -> Estimate:
 
 
 def _estimate(track: QuantityTrack) -> Estimate:
+    if track.iterations[-1] < MIN_HISTORY:  # before any array: every value of a case is asked at each check
+        return Estimate(TOO_EARLY, math.inf)
     d = np.asarray(track.differences[1:], dtype=np.float64)
     its = np.asarray(track.iterations[1:], dtype=np.int64)
-    if track.iterations[-1] < MIN_HISTORY or len(d) < MIN_SAMPLES or not np.all(np.isfinite(d)):
+    if len(d) < MIN_SAMPLES or not np.all(np.isfinite(d)):
         return Estimate(TOO_EARLY, math.inf)
     count = max(MIN_WINDOW, int(math.ceil(WINDOW_FRACTION * len(d))))
     d, its = d[-count:], its[-count:]

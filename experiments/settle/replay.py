@@ -66,8 +66,8 @@ def replay(directory: Path, tolerance: float, verbose: bool = False, fields_only
     checks = 0
     last = None
     cursor = 0
-    final = int(np.flatnonzero(keep)[-1])
-    for index in np.flatnonzero(keep):
+    sampled = np.flatnonzero(keep)
+    for index in sampled:
         n = int(its[index])
         for name in record["fields"]:
             tracks[name].add(n, np.asarray(stacks[name][index], dtype=np.float64))
@@ -77,7 +77,7 @@ def replay(directory: Path, tolerance: float, verbose: bool = False, fields_only
                 tracks[name] = new_track(name, is_field=False)
             tracks[name].add(at, value, floor)
             cursor += 1
-        if not judge_due(n, last) and not (at_criterion and index == final):
+        if not judge_due(n, last) and not (at_criterion and index == sampled[-1]):
             continue
         last = n
         verdict, since = judge(tracks, n, SettleRule(tolerance), since)
